@@ -1,0 +1,79 @@
+// probekit .pvol — the file that carries baked probe volumes from baker to runtime.
+//
+// Byte layout (all integers little-endian):
+//   offset  0  magic         8 bytes  "PKVOL\r\n\x1a" + '\0'
+//   offset  8  version       u32      kPvolVersion
+//   offset 12  header bytes  u32      32 (room to grow the header)
+//   offset 16  payload bytes u64      N
+//   offset 24  checksum      u64      xxHash64 (seed 0) of the N payload bytes
+//   offset 32  payload       N bytes  cereal PortableBinaryArchive (see pvol.cpp, serialize())
+// Nothing may follow the payload.
+//
+// The payload holds the bake metadata, then a volume count, then per volume: a layout enum
+// (VolumeLayout; only Dense exists yet, Bricked is reserved for adaptive volumes), the
+// VolumeDesc fields, validity bytes and texel planes (volume.hpp documents their packing).
+//
+// Reading never trusts the bytes: every count is checked against the bytes that remain
+// before anything is allocated, every enum against its known values, every float field for
+// finiteness, every resolution for power-of-two; each failure has its own ErrorCode and a
+// message naming the file and the field.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "probekit/formats/result.hpp"
+#include "probekit/formats/volume.hpp"
+
+namespace probekit {
+
+constexpr uint32_t kPvolVersion = 1;
+constexpr size_t kPvolHeaderBytes = 32;
+
+enum class VolumeLayout : uint8_t {
+    Dense = 0,   // a full grid of probes
+    Bricked = 1, // reserved: coarse grid plus refined bricks (not readable yet)
+};
+
+// How a file was made. Free-form parameters are a JSON object as text, so every method can
+// record its own settings without a format change.
+struct BakeMetadata {
+    std::string toolVersion;    // e.g. "probekit 0.1.0"
+    std::string method;         // "path", "vpl", "lpv", "synthetic", ...
+    std::string parametersJson; // the resolved settings, as a JSON object
+    uint64_t seed = 0;
+    uint64_t sceneHash = 0; // xxHash64 of the scene file bytes (0 when there was none)
+    double bakeSeconds = 0.0;
+    friend bool operator==(const BakeMetadata&, const BakeMetadata&) = default;
+};
+
+struct PvolFile {
+    BakeMetadata metadata;
+    std::vector<Volume> volumes;
+};
+
+// Serialises to the complete file bytes (header + payload). Preconditions: every volume passes
+// validateVolume (asserted in debug builds).
+std::vector<uint8_t> encodePvol(const PvolFile& file);
+
+// Parses untrusted bytes. `source_name` only labels error messages (usually the path).
+Result<PvolFile> decodePvol(std::span<const uint8_t> bytes, std::string_view source_name);
+
+// Reads and decodes a file.
+Result<PvolFile> readPvol(const std::filesystem::path& path);
+
+// Writes atomically: the bytes go to a temporary file in the same directory, are flushed to
+// disk, then renamed over `path`. If anything fails the temporary file is removed, `path` is
+// untouched (an existing file keeps its old contents), and the error names the path.
+Result<void> writePvol(const std::filesystem::path& path, const PvolFile& file);
+
+// Writes arbitrary bytes atomically with the same guarantees (used by writePvol and tools).
+Result<void> writeFileAtomic(const std::filesystem::path& path, std::span<const uint8_t> bytes);
+
+// xxHash64 (Yann Collet's algorithm, specification at xxhash.com) of a byte range.
+uint64_t xxhash64(std::span<const uint8_t> bytes, uint64_t seed = 0);
+
+} // namespace probekit

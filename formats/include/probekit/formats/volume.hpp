@@ -1,0 +1,103 @@
+// probekit::Volume — one probe volume as it is stored on disk and uploaded to the GPU.
+//
+// Coefficients are stored as RGBA texel planes, exactly as the runtime uploads them as 3D
+// textures (one texture per plane, each texel one probe, same x-fastest order as the grid):
+//
+//   L1 (3 planes): plane c (c = 0 red, 1 green, 2 blue) = (L00, L1-1, L10, L11) of channel c.
+//   L2 (7 planes): planes 0..2 as for L1; planes 3..6 hold the 15 band-2 values in order
+//                  value j = 3 * k + c (k = 0..4 for L2-2, L2-1, L20, L21, L22; c = channel),
+//                  at plane 3 + j / 4, component j % 4:
+//                    plane 3 = (L2-2.r, L2-2.g, L2-2.b, L2-1.r)
+//                    plane 4 = (L2-1.g, L2-1.b, L20.r,  L20.g)
+//                    plane 5 = (L20.b,  L21.r,  L21.g,  L21.b)
+//                    plane 6 = (L22.r,  L22.g,  L22.b,  0)
+//   So an L1 view of an L2 volume is its first three planes.
+//
+// Texel storage is plane-major: texel (plane p, probe i) starts at float/half index
+// 4 * (p * probeCount + i). Float16 texels are IEEE 754 binary16 bit patterns, converted with
+// round-to-nearest-even (Imath::half).
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <glm/vec4.hpp>
+
+#include "probekit/formats/grid.hpp"
+#include "probekit/formats/result.hpp"
+#include "probekit/formats/sh.hpp"
+
+namespace probekit {
+
+enum class Storage : uint8_t {
+    Float32 = 0,
+    Float16 = 1,
+};
+
+std::string_view toString(Storage storage);
+
+constexpr uint32_t planeCount(sh::Order order) {
+    return order == sh::Order::L1 ? 3u : 7u;
+}
+constexpr size_t bytesPerComponent(Storage storage) {
+    return storage == Storage::Float32 ? 4 : 2;
+}
+
+// Largest finite binary16 value; larger magnitudes cannot be stored as half.
+constexpr float kHalfMax = 65504.0f;
+
+// Probe validity: 1 = the probe sees the scene from open space, 0 = it was inside geometry
+// (its coefficients were filled by dilation from valid neighbours).
+constexpr uint8_t kProbeValid = 1;
+constexpr uint8_t kProbeInvalid = 0;
+
+// Everything about a volume except its probe data.
+struct VolumeDesc {
+    std::string name;
+    grid::GridLayout grid;
+    sh::Order shOrder = sh::Order::L2;
+    Storage storage = Storage::Float32;
+    int32_t blendPriority = 0; // higher wins where volumes overlap
+    float fadeDistance = 0.0f; // metres inside the border over which the volume fades out
+};
+
+struct Volume {
+    VolumeDesc desc;
+    std::vector<uint8_t> validity;   // one byte per probe
+    std::vector<float> texelsF32;    // planeCount * probeCount * 4, when storage == Float32
+    std::vector<uint16_t> texelsF16; // planeCount * probeCount * 4, when storage == Float16
+
+    size_t probeCount() const { return desc.grid.probeCount(); }
+    uint32_t planes() const { return planeCount(desc.shOrder); }
+    // Bytes of texel data (what the GPU textures hold).
+    size_t texelBytes() const {
+        return size_t(planes()) * probeCount() * 4 * bytesPerComponent(desc.storage);
+    }
+    size_t validCount() const;
+
+    // Texel of one plane at one probe, converted to float.
+    glm::vec4 texel(uint32_t plane, size_t probe) const;
+    // Unpacks one probe's coefficients (band 2 zero for L1).
+    sh::ShRgb probe(size_t probe) const;
+};
+
+// Packs one probe's coefficients into `planeCount(order)` RGBA texels (out has room for 7).
+void packProbe(const sh::ShRgb& sh, sh::Order order, glm::vec4* out);
+sh::ShRgb unpackProbe(const glm::vec4* texels, sh::Order order);
+
+// Builds a volume from per-probe coefficients (grid order) and validity (empty = all valid).
+// Fails, naming the volume and the offending probe or value, when:
+//  * probes.size() or validity.size() differs from the grid's probe count;
+//  * a coefficient is NaN or infinite;
+//  * storage is Float16 and a coefficient's magnitude exceeds kHalfMax (the message gives the
+//    largest magnitude and suggests float storage) -- never a silent infinity.
+Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
+                          std::span<const uint8_t> validity = {});
+
+// Checks a volume's internal consistency (sizes, enums, bounds, resolution, validity bytes).
+Result<void> validateVolume(const Volume& volume);
+
+} // namespace probekit

@@ -1,0 +1,205 @@
+#include "probekit/formats/volume.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include <Imath/half.h>
+
+namespace probekit {
+
+std::string_view toString(Storage storage) {
+    switch (storage) {
+    case Storage::Float32:
+        return "float";
+    case Storage::Float16:
+        return "half";
+    }
+    return "unknown";
+}
+
+namespace {
+
+// Band-2 value j = 3 * k + c sits at plane 3 + j / 4, component j % 4 (see volume.hpp).
+constexpr int kBand2First = 4;
+
+std::string volumeLabel(const VolumeDesc& desc) {
+    return "volume '" + desc.name + "'";
+}
+
+} // namespace
+
+void packProbe(const sh::ShRgb& sh, sh::Order order, glm::vec4* out) {
+    for (int c = 0; c < 3; ++c) {
+        out[c] = glm::vec4(sh.rgb[0][c], sh.rgb[1][c], sh.rgb[2][c], sh.rgb[3][c]);
+    }
+    if (order == sh::Order::L1) {
+        return;
+    }
+    for (int p = 3; p < 7; ++p) {
+        out[p] = glm::vec4(0.0f);
+    }
+    for (int j = 0; j < 15; ++j) {
+        out[3 + j / 4][j % 4] = sh.rgb[kBand2First + j / 3][j % 3];
+    }
+}
+
+sh::ShRgb unpackProbe(const glm::vec4* texels, sh::Order order) {
+    sh::ShRgb sh;
+    for (int c = 0; c < 3; ++c) {
+        for (int i = 0; i < 4; ++i) {
+            sh.rgb[i][c] = texels[c][i];
+        }
+    }
+    if (order == sh::Order::L2) {
+        for (int j = 0; j < 15; ++j) {
+            sh.rgb[kBand2First + j / 3][j % 3] = texels[3 + j / 4][j % 4];
+        }
+    }
+    return sh;
+}
+
+size_t Volume::validCount() const {
+    return size_t(std::count(validity.begin(), validity.end(), kProbeValid));
+}
+
+glm::vec4 Volume::texel(uint32_t plane, size_t probe_index) const {
+    assert(plane < planes() && probe_index < probeCount());
+    const size_t base = 4 * (size_t(plane) * probeCount() + probe_index);
+    glm::vec4 t;
+    if (desc.storage == Storage::Float32) {
+        for (int i = 0; i < 4; ++i) {
+            t[i] = texelsF32[base + i];
+        }
+    } else {
+        for (int i = 0; i < 4; ++i) {
+            Imath::half h;
+            h.setBits(texelsF16[base + i]);
+            t[i] = float(h);
+        }
+    }
+    return t;
+}
+
+sh::ShRgb Volume::probe(size_t probe_index) const {
+    glm::vec4 texels[7];
+    for (uint32_t p = 0; p < planes(); ++p) {
+        texels[p] = texel(p, probe_index);
+    }
+    return unpackProbe(texels, desc.shOrder);
+}
+
+Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
+                          std::span<const uint8_t> validity) {
+    const size_t probe_count = desc.grid.probeCount();
+    if (probes.size() != probe_count) {
+        return makeError(ErrorCode::InconsistentSize,
+                         volumeLabel(desc) + ": " + std::to_string(probes.size()) +
+                             " probes given for a grid of " + std::to_string(probe_count));
+    }
+    if (!validity.empty() && validity.size() != probe_count) {
+        return makeError(ErrorCode::InconsistentSize,
+                         volumeLabel(desc) + ": " + std::to_string(validity.size()) +
+                             " validity bytes given for a grid of " + std::to_string(probe_count));
+    }
+
+    Volume volume;
+    const uint32_t planes = planeCount(desc.shOrder);
+    const size_t components = size_t(planes) * probe_count * 4;
+    std::vector<float> texels(components);
+    float largest = 0.0f;
+    size_t largest_probe = 0;
+    for (size_t i = 0; i < probe_count; ++i) {
+        glm::vec4 packed[7];
+        packProbe(probes[i], desc.shOrder, packed);
+        for (uint32_t p = 0; p < planes; ++p) {
+            for (int k = 0; k < 4; ++k) {
+                const float v = packed[p][k];
+                if (!std::isfinite(v)) {
+                    return makeError(ErrorCode::NonFinite, volumeLabel(desc) + ": probe " +
+                                                               std::to_string(i) +
+                                                               " has a non-finite SH coefficient");
+                }
+                if (std::abs(v) > largest) {
+                    largest = std::abs(v);
+                    largest_probe = i;
+                }
+                texels[4 * (size_t(p) * probe_count + i) + k] = v;
+            }
+        }
+    }
+
+    if (desc.storage == Storage::Float16) {
+        if (largest > kHalfMax) {
+            return makeError(ErrorCode::OutOfRange,
+                             volumeLabel(desc) + ": largest SH coefficient " +
+                                 std::to_string(largest) + " (probe " +
+                                 std::to_string(largest_probe) + ") exceeds the half-float " +
+                                 "maximum 65504; use \"format\": \"float\" storage");
+        }
+        volume.texelsF16.resize(components);
+        for (size_t i = 0; i < components; ++i) {
+            // Imath::half rounds to nearest even; the range check above rules out overflow.
+            volume.texelsF16[i] = Imath::half(texels[i]).bits();
+        }
+    } else {
+        volume.texelsF32 = std::move(texels);
+    }
+    if (validity.empty()) {
+        volume.validity.assign(probe_count, kProbeValid);
+    } else {
+        volume.validity.assign(validity.begin(), validity.end());
+    }
+    volume.desc = std::move(desc);
+    return volume;
+}
+
+Result<void> validateVolume(const Volume& volume) {
+    const VolumeDesc& desc = volume.desc;
+    const std::string label = volumeLabel(desc);
+    if (desc.shOrder != sh::Order::L1 && desc.shOrder != sh::Order::L2) {
+        return makeError(ErrorCode::BadEnum, label + ": sh_order " +
+                                                 std::to_string(int(desc.shOrder)) +
+                                                 " is not 1 or 2");
+    }
+    if (desc.storage != Storage::Float32 && desc.storage != Storage::Float16) {
+        return makeError(ErrorCode::BadEnum, label + ": storage " +
+                                                 std::to_string(int(desc.storage)) +
+                                                 " is not 0 (float) or 1 (half)");
+    }
+    if (auto r = grid::validateResolution(desc.grid.resolution(), desc.grid.mode()); !r) {
+        return makeError(r.error().code, label + ": " + r.error().message);
+    }
+    if (auto r = grid::validateBounds(desc.grid.bounds()); !r) {
+        return makeError(r.error().code, label + ": " + r.error().message);
+    }
+    if (!std::isfinite(desc.fadeDistance) || desc.fadeDistance < 0.0f) {
+        return makeError(ErrorCode::OutOfRange, label + ": fade_distance must be finite and >= 0");
+    }
+    const size_t probe_count = volume.probeCount();
+    if (volume.validity.size() != probe_count) {
+        return makeError(ErrorCode::InconsistentSize,
+                         label + ": " + std::to_string(volume.validity.size()) +
+                             " validity bytes for " + std::to_string(probe_count) + " probes");
+    }
+    for (uint8_t v : volume.validity) {
+        if (v != kProbeValid && v != kProbeInvalid) {
+            return makeError(ErrorCode::OutOfRange,
+                             label + ": validity byte " + std::to_string(v) + " is not 0 or 1");
+        }
+    }
+    const size_t components = size_t(volume.planes()) * probe_count * 4;
+    const size_t have_f32 = volume.texelsF32.size();
+    const size_t have_f16 = volume.texelsF16.size();
+    const bool is_f32 = desc.storage == Storage::Float32;
+    if ((is_f32 ? have_f32 : have_f16) != components || (is_f32 ? have_f16 : have_f32) != 0) {
+        return makeError(ErrorCode::InconsistentSize,
+                         label + ": texel data holds " +
+                             std::to_string(is_f32 ? have_f32 : have_f16) + " values, expected " +
+                             std::to_string(components) + " (" + std::to_string(volume.planes()) +
+                             " planes x " + std::to_string(probe_count) + " probes x 4)");
+    }
+    return {};
+}
+
+} // namespace probekit

@@ -1,0 +1,150 @@
+#include <cmath>
+#include <cstring>
+
+#include <gtest/gtest.h>
+
+#include "probekit/formats/volume.hpp"
+
+using namespace probekit;
+
+namespace {
+// binary16 has an 11-bit significand: round to nearest gives relative error <= 2^-11.
+constexpr float kHalfRelative = 1.0f / 2048.0f;
+
+VolumeDesc desc(sh::Order order, Storage storage, glm::uvec3 res = glm::uvec3(2, 4, 2)) {
+    VolumeDesc d;
+    d.name = "test";
+    d.grid = grid::GridLayout({glm::vec3(0), glm::vec3(1)}, res, grid::PositionMode::Center);
+    d.shOrder = order;
+    d.storage = storage;
+    return d;
+}
+
+// Every coefficient different, so a packing slip shows up.
+sh::ShRgb distinctSh(size_t probe, sh::Order order) {
+    sh::ShRgb s;
+    for (int i = 0; i < sh::coefficientCount(order); ++i) {
+        for (int c = 0; c < 3; ++c) {
+            s.rgb[i][c] = float(probe) * 100.0f + float(i) * 10.0f + float(c) + 0.25f;
+        }
+    }
+    return s;
+}
+} // namespace
+
+TEST(VolumePacking, RoundTripsEveryCoefficientL1AndL2) {
+    for (sh::Order order : {sh::Order::L1, sh::Order::L2}) {
+        const sh::ShRgb s = distinctSh(3, order);
+        glm::vec4 texels[7];
+        packProbe(s, order, texels);
+        EXPECT_EQ(unpackProbe(texels, order), s);
+    }
+}
+
+TEST(VolumePacking, LayoutMatchesDocumentation) {
+    const sh::ShRgb s = distinctSh(0, sh::Order::L2);
+    glm::vec4 t[7];
+    packProbe(s, sh::Order::L2, t);
+    // plane c = (L00, L1-1, L10, L11) of channel c
+    EXPECT_EQ(t[1], glm::vec4(s.rgb[0].y, s.rgb[1].y, s.rgb[2].y, s.rgb[3].y));
+    // plane 3 = (L2-2.r, L2-2.g, L2-2.b, L2-1.r)
+    EXPECT_EQ(t[3], glm::vec4(s.rgb[4].x, s.rgb[4].y, s.rgb[4].z, s.rgb[5].x));
+    // plane 4 = (L2-1.g, L2-1.b, L20.r, L20.g)
+    EXPECT_EQ(t[4], glm::vec4(s.rgb[5].y, s.rgb[5].z, s.rgb[6].x, s.rgb[6].y));
+    // plane 5 = (L20.b, L21.r, L21.g, L21.b)
+    EXPECT_EQ(t[5], glm::vec4(s.rgb[6].z, s.rgb[7].x, s.rgb[7].y, s.rgb[7].z));
+    // plane 6 = (L22.r, L22.g, L22.b, 0)
+    EXPECT_EQ(t[6], glm::vec4(s.rgb[8].x, s.rgb[8].y, s.rgb[8].z, 0.0f));
+}
+
+TEST(VolumeMake, FloatIsBitExactAndPlaneMajor) {
+    VolumeDesc d = desc(sh::Order::L2, Storage::Float32);
+    std::vector<sh::ShRgb> probes(d.grid.probeCount());
+    for (size_t i = 0; i < probes.size(); ++i) {
+        probes[i] = distinctSh(i, sh::Order::L2);
+    }
+    auto v = makeVolume(d, probes);
+    ASSERT_TRUE(v.ok()) << v.error().message;
+    EXPECT_TRUE(validateVolume(v.value()).ok());
+    EXPECT_EQ(v.value().texelsF32.size(), 7 * probes.size() * 4);
+    EXPECT_EQ(v.value().texelBytes(), 7 * probes.size() * 16);
+    for (size_t i = 0; i < probes.size(); ++i) {
+        EXPECT_EQ(v.value().probe(i), probes[i]);
+    }
+    // texel (plane p, probe i) starts at 4 * (p * probeCount + i)
+    EXPECT_EQ(v.value().texelsF32[4 * (2 * probes.size() + 5)], probes[5].rgb[0].z);
+}
+
+TEST(VolumeMake, HalfWithinHalfPrecision) {
+    VolumeDesc d = desc(sh::Order::L1, Storage::Float16);
+    std::vector<sh::ShRgb> probes(d.grid.probeCount());
+    for (size_t i = 0; i < probes.size(); ++i) {
+        probes[i] = distinctSh(i, sh::Order::L1);
+    }
+    auto v = makeVolume(d, probes);
+    ASSERT_TRUE(v.ok()) << v.error().message;
+    EXPECT_TRUE(v.value().texelsF32.empty());
+    EXPECT_EQ(v.value().texelBytes(), 3 * probes.size() * 8);
+    for (size_t i = 0; i < probes.size(); ++i) {
+        const sh::ShRgb got = v.value().probe(i);
+        for (int k = 0; k < 4; ++k) {
+            for (int c = 0; c < 3; ++c) {
+                EXPECT_NEAR(got.rgb[k][c], probes[i].rgb[k][c],
+                            std::abs(probes[i].rgb[k][c]) * kHalfRelative);
+            }
+        }
+    }
+}
+
+TEST(VolumeMake, HalfOverflowIsAnErrorNamingVolumeAndValue) {
+    VolumeDesc d = desc(sh::Order::L2, Storage::Float16);
+    d.name = "sunlit_hall";
+    std::vector<sh::ShRgb> probes(d.grid.probeCount());
+    probes[6].rgb[0].x = 70000.0f;
+    probes[3].rgb[2].y = -90000.0f;
+    auto v = makeVolume(d, probes);
+    ASSERT_FALSE(v.ok());
+    EXPECT_EQ(v.error().code, ErrorCode::OutOfRange);
+    EXPECT_NE(v.error().message.find("sunlit_hall"), std::string::npos) << v.error().message;
+    EXPECT_NE(v.error().message.find("90000"), std::string::npos) << v.error().message;
+    EXPECT_NE(v.error().message.find("float"), std::string::npos) << v.error().message;
+    // The same data stored as float is fine.
+    d.storage = Storage::Float32;
+    EXPECT_TRUE(makeVolume(d, probes).ok());
+}
+
+TEST(VolumeMake, RejectsNonFiniteAndWrongCounts) {
+    VolumeDesc d = desc(sh::Order::L1, Storage::Float32);
+    std::vector<sh::ShRgb> probes(d.grid.probeCount());
+    probes[2].rgb[1].z = NAN;
+    EXPECT_EQ(makeVolume(d, probes).error().code, ErrorCode::NonFinite);
+    probes[2].rgb[1].z = 0.0f;
+    std::vector<sh::ShRgb> short_probes(3);
+    EXPECT_EQ(makeVolume(d, short_probes).error().code, ErrorCode::InconsistentSize);
+    std::vector<uint8_t> validity(5, kProbeValid);
+    EXPECT_EQ(makeVolume(d, probes, validity).error().code, ErrorCode::InconsistentSize);
+}
+
+TEST(VolumeMake, KeepsValidityAndCountsIt) {
+    VolumeDesc d = desc(sh::Order::L1, Storage::Float32);
+    std::vector<sh::ShRgb> probes(d.grid.probeCount());
+    std::vector<uint8_t> validity(probes.size(), kProbeValid);
+    validity[0] = validity[7] = kProbeInvalid;
+    auto v = makeVolume(d, probes, validity);
+    ASSERT_TRUE(v.ok());
+    EXPECT_EQ(v.value().validCount(), probes.size() - 2);
+}
+
+TEST(VolumeValidate, CatchesInconsistentTexelsAndValidity) {
+    VolumeDesc d = desc(sh::Order::L2, Storage::Float32);
+    std::vector<sh::ShRgb> probes(d.grid.probeCount());
+    Volume v = makeVolume(d, probes).value();
+    v.texelsF32.pop_back();
+    EXPECT_EQ(validateVolume(v).error().code, ErrorCode::InconsistentSize);
+    v.texelsF32.push_back(0.0f);
+    v.validity[1] = 7;
+    EXPECT_EQ(validateVolume(v).error().code, ErrorCode::OutOfRange);
+    v.validity[1] = kProbeValid;
+    v.desc.fadeDistance = -1.0f;
+    EXPECT_EQ(validateVolume(v).error().code, ErrorCode::OutOfRange);
+}

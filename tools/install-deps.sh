@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Installs everything probekit needs on Debian 12 (run as root). Idempotent: packages already
+# present are left alone, and apt's lists are refreshed only when something is missing.
+set -euo pipefail
+
+packages=(
+    build-essential cmake ninja-build pkg-config git clang-format
+    libembree-dev libopenimageio-dev libtinygltf-dev libglm-dev libcereal-dev libimath-dev
+    nlohmann-json3-dev libcli11-dev
+    libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers glslc
+    libgtest-dev libgmock-dev googletest libbenchmark-dev
+    python3 python3-matplotlib python3-numpy hyperfine
+)
+
+missing=()
+for p in "${packages[@]}"; do
+    if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+        missing+=("$p")
+    fi
+done
+
+if ((${#missing[@]} == 0)); then
+    echo "install-deps: all ${#packages[@]} packages present"
+    exit 0
+fi
+
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+apt-get update -qq
+apt-get install -y -qq --no-install-recommends "${missing[@]}"

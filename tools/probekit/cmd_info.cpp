@@ -1,0 +1,143 @@
+// `probekit info` and `probekit validate`: read a .pvol and describe or check it.
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "commands.hpp"
+#include "probekit/formats/pvol.hpp"
+
+namespace probekit::cli {
+namespace {
+
+nlohmann::json vec3Json(glm::vec3 v) {
+    return nlohmann::json::array({v.x, v.y, v.z});
+}
+
+nlohmann::json describe(const PvolFile& file, const std::filesystem::path& path) {
+    nlohmann::json j;
+    j["file"] = path.string();
+    j["file_bytes"] = std::filesystem::file_size(path);
+    const BakeMetadata& m = file.metadata;
+    nlohmann::json params = nlohmann::json::parse(m.parametersJson, nullptr, false);
+    char hash[17];
+    std::snprintf(hash, sizeof hash, "%016llx", static_cast<unsigned long long>(m.sceneHash));
+    j["metadata"] = {
+        {"tool_version", m.toolVersion},
+        {"method", m.method},
+        {"parameters", params.is_discarded() ? nlohmann::json(m.parametersJson) : params},
+        {"seed", m.seed},
+        {"scene_hash", hash},
+        {"bake_seconds", m.bakeSeconds}};
+    j["volumes"] = nlohmann::json::array();
+    for (const Volume& v : file.volumes) {
+        const grid::GridLayout& g = v.desc.grid;
+        const glm::uvec3 res = g.resolution();
+        nlohmann::json jv = {
+            {"name", v.desc.name},
+            {"layout", "dense"},
+            {"resolution", {res.x, res.y, res.z}},
+            {"position", std::string(grid::toString(g.mode()))},
+            {"sh_order", int(v.desc.shOrder)},
+            {"format", std::string(toString(v.desc.storage))},
+            {"bounds_min", vec3Json(g.bounds().min)},
+            {"bounds_max", vec3Json(g.bounds().max)},
+            {"spacing", vec3Json(g.spacing())},
+            {"frame_rotation_wxyz",
+             {g.frame().rotation.w, g.frame().rotation.x, g.frame().rotation.y,
+              g.frame().rotation.z}},
+            {"frame_translation", vec3Json(g.frame().translation)},
+            {"blend_priority", v.desc.blendPriority},
+            {"fade_distance", v.desc.fadeDistance},
+            {"probes", v.probeCount()},
+            {"valid_probes", v.validCount()},
+            {"invalid_probes", v.probeCount() - v.validCount()},
+            {"texel_planes", v.planes()},
+            {"texel_bytes", v.texelBytes()},
+        };
+        j["volumes"].push_back(jv);
+    }
+    return j;
+}
+
+void printText(const nlohmann::json& j) {
+    std::printf("%s: %llu bytes, %zu volume(s)\n", j["file"].get<std::string>().c_str(),
+                j["file_bytes"].get<unsigned long long>(), j["volumes"].size());
+    const auto& m = j["metadata"];
+    std::printf("  baked by %s, method %s, seed %llu, scene hash %s, %.3f s\n",
+                m["tool_version"].get<std::string>().c_str(),
+                m["method"].get<std::string>().c_str(), m["seed"].get<unsigned long long>(),
+                m["scene_hash"].get<std::string>().c_str(), m["bake_seconds"].get<double>());
+    std::printf("  parameters: %s\n", m["parameters"].dump().c_str());
+    for (const auto& v : j["volumes"]) {
+        const auto& r = v["resolution"];
+        const auto& lo = v["bounds_min"];
+        const auto& hi = v["bounds_max"];
+        std::printf("  volume '%s': %ux%ux%u %s probes, L%d, %s, %zu texel bytes\n",
+                    v["name"].get<std::string>().c_str(), r[0].get<unsigned>(),
+                    r[1].get<unsigned>(), r[2].get<unsigned>(),
+                    v["position"].get<std::string>().c_str(), v["sh_order"].get<int>(),
+                    v["format"].get<std::string>().c_str(), v["texel_bytes"].get<size_t>());
+        std::printf("    bounds (%g, %g, %g) .. (%g, %g, %g) m, spacing (%g, %g, %g) m\n",
+                    lo[0].get<double>(), lo[1].get<double>(), lo[2].get<double>(),
+                    hi[0].get<double>(), hi[1].get<double>(), hi[2].get<double>(),
+                    v["spacing"][0].get<double>(), v["spacing"][1].get<double>(),
+                    v["spacing"][2].get<double>());
+        std::printf("    probes %zu (valid %zu, invalid %zu), blend priority %d, fade %g m\n",
+                    v["probes"].get<size_t>(), v["valid_probes"].get<size_t>(),
+                    v["invalid_probes"].get<size_t>(), v["blend_priority"].get<int>(),
+                    v["fade_distance"].get<double>());
+    }
+}
+
+} // namespace
+
+void addInfoCommand(CLI::App& app, Command& selected) {
+    struct Options {
+        std::string file;
+        bool json = false;
+    };
+    auto options = std::make_shared<Options>();
+    CLI::App* cmd = app.add_subcommand("info", "Describe the volumes and bake metadata of a .pvol");
+    cmd->add_option("FILE", options->file, "the .pvol file")->required();
+    cmd->add_flag("--json", options->json, "print one JSON object instead of text");
+    cmd->callback([options, &selected] {
+        selected = [options] {
+            Result<PvolFile> file = readPvol(options->file);
+            if (!file) {
+                std::fprintf(stderr, "probekit info: %s\n", file.error().message.c_str());
+                return kExitFailure;
+            }
+            const nlohmann::json j = describe(file.value(), options->file);
+            if (options->json) {
+                std::printf("%s\n", j.dump(2).c_str());
+            } else {
+                printText(j);
+            }
+            return kExitOk;
+        };
+    });
+}
+
+void addValidateCommand(CLI::App& app, Command& selected) {
+    auto file_path = std::make_shared<std::string>();
+    CLI::App* cmd = app.add_subcommand(
+        "validate", "Check a .pvol (header, checksum, every field); exit 0 when valid, 1 with "
+                    "the reason otherwise");
+    cmd->add_option("FILE", *file_path, "the .pvol file")->required();
+    cmd->callback([file_path, &selected] {
+        selected = [file_path] {
+            Result<PvolFile> file = readPvol(*file_path);
+            if (!file) {
+                std::fprintf(stderr, "probekit validate: %s\n", file.error().message.c_str());
+                return kExitFailure;
+            }
+            std::printf("%s: valid (%zu volume(s))\n", file_path->c_str(),
+                        file.value().volumes.size());
+            return kExitOk;
+        };
+    });
+}
+
+} // namespace probekit::cli

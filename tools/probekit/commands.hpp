@@ -1,0 +1,22 @@
+// Subcommands of the probekit CLI. Each registers its options on the app and returns the
+// function to run when it is chosen; the function returns the process exit code.
+#pragma once
+
+#include <functional>
+
+#include <CLI/CLI.hpp>
+
+namespace probekit::cli {
+
+// Exit codes (documented in the README):
+constexpr int kExitOk = 0;
+constexpr int kExitFailure = 1; // the operation failed (bad input, invalid file, I/O error)
+constexpr int kExitUsage = 2;   // bad command line (CLI11 parse error)
+
+using Command = std::function<int()>;
+
+void addInfoCommand(CLI::App& app, Command& selected);
+void addValidateCommand(CLI::App& app, Command& selected);
+void addSynthCommand(CLI::App& app, Command& selected);
+
+} // namespace probekit::cli
