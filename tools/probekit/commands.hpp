@@ -18,5 +18,6 @@ using Command = std::function<int()>;
 void addInfoCommand(CLI::App& app, Command& selected);
 void addValidateCommand(CLI::App& app, Command& selected);
 void addSynthCommand(CLI::App& app, Command& selected);
+void addSampleCommand(CLI::App& app, Command& selected);
 
 } // namespace probekit::cli

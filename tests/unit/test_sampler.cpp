@@ -1,0 +1,584 @@
+// Tests of the CPU reference sampler (runtime/include/probekit/runtime/sampler.hpp): trilinear
+// interpolation, clamp addressing, frames, position modes, and blending of overlapping volumes.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <glm/gtc/quaternion.hpp>
+#include <gtest/gtest.h>
+
+#include "probekit/formats/pvol.hpp"
+#include "probekit/runtime/sampler.hpp"
+
+using namespace probekit;
+using runtime::VolumeSet;
+
+namespace probekit::sh {
+// Readable gtest failure messages for EXPECT_EQ on coefficients. Internal linkage so another
+// test file may print ShRgb its own way.
+static void PrintTo(const ShRgb& s, std::ostream* out) {
+    for (int i = 0; i < kMaxCoefficients; ++i) {
+        *out << (i == 0 ? "{" : ", ") << "(" << s.rgb[i].x << " " << s.rgb[i].y << " " << s.rgb[i].z
+             << ")";
+    }
+    *out << "}";
+}
+} // namespace probekit::sh
+
+namespace {
+
+// Interpolating values of magnitude ~100 with weights in [0, 1] sums at most eight products, so
+// each result is within a few float ulps (2^-23 relative) of the exact value.
+constexpr float kInterpolationRelative = 1e-6f;
+// Positions go through a quaternion rotation and a division by the spacing before they become
+// grid coordinates; each step loses an ulp or so of a coordinate of magnitude ~10, which the
+// field's unit gradient turns into ~1e-6 absolute on values of magnitude ~10.
+constexpr float kFrameRelative = 1e-5f;
+// binary16 has an 11-bit significand: round to nearest gives relative error <= 2^-11.
+constexpr float kHalfRelative = 1.0f / 2048.0f;
+// kY00 = 0.282095 is 1 / (2 sqrt(pi)) to 6 decimals (relative error ~7e-7), so a constant
+// radiance comes back as pi L to about 1e-6 relative.
+constexpr float kFurnaceRelative = 1e-5f;
+// Depths like 4 - 3.9f carry the rounding of a decimal position (~2e-7 m), divided by a fade
+// distance of 0.5 m.
+constexpr float kWeightTolerance = 1e-6f;
+
+using ProbeFunction = std::function<sh::ShRgb(glm::uvec3 probe, glm::vec3 world)>;
+
+struct VolumeSpec {
+    grid::Aabb bounds{glm::vec3(0.0f), glm::vec3(1.0f)};
+    glm::uvec3 resolution{2u};
+    grid::PositionMode mode = grid::PositionMode::Center;
+    grid::RigidFrame frame{};
+    sh::Order order = sh::Order::L2;
+    Storage storage = Storage::Float32;
+    int32_t priority = 0;
+    float fade = 0.0f;
+    std::string name = "test";
+};
+
+Volume makeTestVolume(const VolumeSpec& spec, const ProbeFunction& probe_sh) {
+    VolumeDesc desc;
+    desc.name = spec.name;
+    desc.grid = grid::GridLayout(spec.bounds, spec.resolution, spec.mode, spec.frame);
+    desc.shOrder = spec.order;
+    desc.storage = spec.storage;
+    desc.blendPriority = spec.priority;
+    desc.fadeDistance = spec.fade;
+    std::vector<sh::ShRgb> probes(desc.grid.probeCount());
+    for (size_t i = 0; i < probes.size(); ++i) {
+        const glm::uvec3 c = desc.grid.probeCoords(i);
+        probes[i] = probe_sh(c, desc.grid.probeWorld(c));
+        if (spec.order == sh::Order::L1) {
+            probes[i] = sh::truncateToL1(probes[i]);
+        }
+    }
+    Result<Volume> v = makeVolume(desc, probes);
+    EXPECT_TRUE(v.ok()) << v.error().message;
+    return std::move(v).value();
+}
+
+// Every coefficient of every channel differs between probes and within a probe.
+sh::ShRgb distinctSh(glm::uvec3 probe) {
+    sh::ShRgb s;
+    const float id = float(probe.x + 7 * probe.y + 31 * probe.z);
+    for (int i = 0; i < sh::kMaxCoefficients; ++i) {
+        for (int c = 0; c < 3; ++c) {
+            s.rgb[i][c] = id * 1.5f + float(i) * 0.25f - float(c) * 0.125f + 0.5f;
+        }
+    }
+    return s;
+}
+
+// Radiance SH of a uniform environment of radiance L: L00 = sqrt(4 pi) L, the rest zero.
+sh::ShRgb constantRadiance(glm::vec3 radiance) {
+    sh::ShRgb s;
+    s.rgb[0] = radiance * (2.0f * std::sqrt(sh::kPi));
+    return s;
+}
+
+ProbeFunction constantField(glm::vec3 radiance) {
+    return [radiance](glm::uvec3, glm::vec3) { return constantRadiance(radiance); };
+}
+
+// Coefficient i, channel c is an affine function of the world position, each one different.
+sh::ShRgb affineField(glm::vec3 world) {
+    sh::ShRgb s;
+    for (int i = 0; i < sh::kMaxCoefficients; ++i) {
+        for (int c = 0; c < 3; ++c) {
+            const glm::vec3 gradient(0.5f + 0.1f * float(i), -0.3f + 0.2f * float(c),
+                                     0.7f - 0.05f * float(i + c));
+            s.rgb[i][c] = glm::dot(gradient, world) + float(i) - 2.0f * float(c);
+        }
+    }
+    return s;
+}
+
+sh::ShRgb lerpSh(const sh::ShRgb& a, const sh::ShRgb& b, float t) {
+    sh::ShRgb s;
+    for (int i = 0; i < sh::kMaxCoefficients; ++i) {
+        s.rgb[i] = (1.0f - t) * a.rgb[i] + t * b.rgb[i];
+    }
+    return s;
+}
+
+void expectShNear(const sh::ShRgb& actual, const sh::ShRgb& expected, float relative,
+                  const std::string& where) {
+    for (int i = 0; i < sh::kMaxCoefficients; ++i) {
+        for (int c = 0; c < 3; ++c) {
+            const float e = expected.rgb[i][c];
+            EXPECT_NEAR(actual.rgb[i][c], e, relative * std::max(1.0f, std::abs(e)))
+                << where << ": coefficient " << i << " channel " << c;
+        }
+    }
+}
+
+void expectVec3Near(glm::vec3 actual, glm::vec3 expected, float relative,
+                    const std::string& where) {
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(actual[c], expected[c], relative * std::max(1.0f, std::abs(expected[c])))
+            << where << ": channel " << c;
+    }
+}
+
+// Spacing 1 everywhere and probes on exact binary fractions, so probe positions map to integer
+// grid coordinates without rounding.
+VolumeSpec exactGridSpec(Storage storage) {
+    VolumeSpec spec;
+    spec.bounds = {glm::vec3(-2.0f, 0.0f, -4.0f), glm::vec3(2.0f, 2.0f, 4.0f)};
+    spec.resolution = glm::uvec3(4, 2, 8);
+    spec.storage = storage;
+    return spec;
+}
+
+glm::vec3 furnaceE(glm::vec3 radiance) {
+    return sh::kPi * radiance;
+}
+
+} // namespace
+
+TEST(SamplerTrilinear, ReturnsStoredProbeExactlyAtEveryProbeFloat) {
+    const Volume v = makeTestVolume(exactGridSpec(Storage::Float32),
+                                    [](glm::uvec3 c, glm::vec3) { return distinctSh(c); });
+    const grid::GridLayout& g = v.desc.grid;
+    for (size_t i = 0; i < v.probeCount(); ++i) {
+        const glm::uvec3 c = g.probeCoords(i);
+        EXPECT_EQ(runtime::sampleVolumeSh(v, g.probeWorld(c)), distinctSh(c)) << "probe " << i;
+    }
+}
+
+TEST(SamplerTrilinear, ReturnsStoredProbeWithinHalfPrecisionAtEveryProbeHalf) {
+    const Volume v = makeTestVolume(exactGridSpec(Storage::Float16),
+                                    [](glm::uvec3 c, glm::vec3) { return distinctSh(c); });
+    const grid::GridLayout& g = v.desc.grid;
+    for (size_t i = 0; i < v.probeCount(); ++i) {
+        const glm::uvec3 c = g.probeCoords(i);
+        const sh::ShRgb sampled = runtime::sampleVolumeSh(v, g.probeWorld(c));
+        // The decoded texels themselves come back bit for bit...
+        EXPECT_EQ(sampled, v.probe(i)) << "probe " << i;
+        // ...and they are the baked values to half precision.
+        expectShNear(sampled, distinctSh(c), kHalfRelative, "probe " + std::to_string(i));
+    }
+}
+
+TEST(SamplerTrilinear, MidwayBetweenProbesIsTheAverage) {
+    const Volume v = makeTestVolume(exactGridSpec(Storage::Float32),
+                                    [](glm::uvec3 c, glm::vec3) { return distinctSh(c); });
+    const grid::GridLayout& g = v.desc.grid;
+    const glm::uvec3 a(1, 0, 3);
+    const glm::uvec3 b(2, 0, 3);
+    const glm::vec3 edge_mid = 0.5f * (g.probeWorld(a) + g.probeWorld(b));
+    expectShNear(runtime::sampleVolumeSh(v, edge_mid), lerpSh(distinctSh(a), distinctSh(b), 0.5f),
+                 kInterpolationRelative, "edge midpoint");
+
+    // The centre of a cell is the mean of its eight probes.
+    sh::ShRgb mean;
+    for (uint32_t corner = 0; corner < 8; ++corner) {
+        const glm::uvec3 c(1 + (corner & 1), (corner >> 1) & 1, 5 + (corner >> 2));
+        sh::ShRgb s = distinctSh(c);
+        s *= 0.125f;
+        mean += s;
+    }
+    const glm::vec3 cell_centre =
+        0.5f * (g.probeWorld(glm::uvec3(1, 0, 5)) + g.probeWorld(glm::uvec3(2, 1, 6)));
+    expectShNear(runtime::sampleVolumeSh(v, cell_centre), mean, kInterpolationRelative,
+                 "cell centre");
+}
+
+TEST(SamplerTrilinear, MatchesHandComputedValueAtArbitraryPoint) {
+    // A separable, non-linear field v = a[x] * b[y] * c[z] (plus a per-coefficient offset and
+    // scale so every coefficient differs): trilinear interpolation of a separable product is the
+    // product of the three 1-D interpolations, which is easy to do by hand.
+    static constexpr float kA[4] = {1, 3, 4, 10};
+    static constexpr float kB[4] = {2, 5, 1, 7};
+    static constexpr float kC[4] = {1, 2, 8, 3};
+    auto field = [](glm::uvec3 p, glm::vec3) {
+        sh::ShRgb s;
+        for (int i = 0; i < sh::kMaxCoefficients; ++i) {
+            for (int ch = 0; ch < 3; ++ch) {
+                s.rgb[i][ch] = kA[p.x] * kB[p.y] * kC[p.z] * float(1 + i + 9 * ch) + float(i - ch);
+            }
+        }
+        return s;
+    };
+    VolumeSpec spec;
+    spec.mode = grid::PositionMode::Corner;
+    spec.bounds = {glm::vec3(0.0f), glm::vec3(3.0f)}; // spacing 1: grid coordinate = position
+    spec.resolution = glm::uvec3(4);
+    const Volume v = makeTestVolume(spec, field);
+
+    // Grid point (1.25, 2.5, 0.75):
+    //   x: 0.75 * a[1] + 0.25 * a[2] = 2.25 + 1    = 3.25
+    //   y: 0.5  * b[2] + 0.5  * b[3] = 0.5  + 3.5  = 4
+    //   z: 0.25 * c[0] + 0.75 * c[1] = 0.25 + 1.5  = 1.75
+    //   product 3.25 * 4 * 1.75 = 22.75
+    constexpr float kProduct = 22.75f;
+    const sh::ShRgb sampled = runtime::sampleVolumeSh(v, glm::vec3(1.25f, 2.5f, 0.75f));
+    sh::ShRgb expected;
+    for (int i = 0; i < sh::kMaxCoefficients; ++i) {
+        for (int ch = 0; ch < 3; ++ch) {
+            expected.rgb[i][ch] = kProduct * float(1 + i + 9 * ch) + float(i - ch);
+        }
+    }
+    expectShNear(sampled, expected, kInterpolationRelative, "(1.25, 2.5, 0.75)");
+}
+
+TEST(SamplerTrilinear, ReproducesAnAffineFieldAnywhereInside) {
+    // Trilinear interpolation is exact for affine functions, so any error here is a wrong
+    // index, weight, frame or position mode.
+    const grid::RigidFrame rotated{glm::angleAxis(0.7f, glm::normalize(glm::vec3(1, 2, 3))),
+                                   glm::vec3(5.0f, -1.0f, 2.0f)};
+    for (grid::PositionMode mode : {grid::PositionMode::Center, grid::PositionMode::Corner}) {
+        for (const grid::RigidFrame& frame : {grid::RigidFrame{}, rotated}) {
+            VolumeSpec spec;
+            spec.bounds = {glm::vec3(-1.0f, 0.5f, -3.0f), glm::vec3(2.0f, 2.0f, 1.0f)};
+            spec.resolution = glm::uvec3(8, 4, 16);
+            spec.mode = mode;
+            spec.frame = frame;
+            const Volume v = makeTestVolume(
+                spec, [](glm::uvec3, glm::vec3 world) { return affineField(world); });
+            const grid::GridLayout& g = v.desc.grid;
+            const glm::vec3 last = glm::vec3(spec.resolution) - 1.0f;
+            // Points spread over the lattice (inside the outermost probes, where there is no
+            // clamping), at irrational fractions so no weight is 0 or 1.
+            for (int k = 0; k < 50; ++k) {
+                const glm::vec3 t(std::fmod(0.1f + 0.618034f * float(k), 1.0f),
+                                  std::fmod(0.3f + 0.414214f * float(k), 1.0f),
+                                  std::fmod(0.7f + 0.732051f * float(k), 1.0f));
+                const glm::vec3 world = g.gridToWorld(t * last);
+                expectShNear(runtime::sampleVolumeSh(v, world), affineField(world), kFrameRelative,
+                             std::string(grid::toString(mode)) + " point " + std::to_string(k));
+            }
+        }
+    }
+}
+
+TEST(SamplerClamp, OutsideEqualsNearestBorderValue) {
+    const Volume v = makeTestVolume(exactGridSpec(Storage::Float32),
+                                    [](glm::uvec3 c, glm::vec3) { return distinctSh(c); });
+    const grid::GridLayout& g = v.desc.grid;
+    const glm::uvec3 res = g.resolution();
+
+    // Beyond the -x face (and between the face and the outer probes), at a y, z between probes:
+    // the value on the first probe plane at the same y, z.
+    const glm::vec3 inside_yz = g.gridToWorld(glm::vec3(0.0f, 0.3f, 2.6f));
+    const sh::ShRgb border = runtime::sampleVolumeSh(v, inside_yz);
+    for (float x : {-2.1f, -2.0f, -1.9f, -50.0f}) {
+        expectShNear(runtime::sampleVolumeSh(v, glm::vec3(x, inside_yz.y, inside_yz.z)), border,
+                     kInterpolationRelative, "x = " + std::to_string(x));
+    }
+    // Far beyond a corner of the box: the corner probe itself.
+    EXPECT_EQ(runtime::sampleVolumeSh(v, glm::vec3(100.0f, 100.0f, 100.0f)), distinctSh(res - 1u));
+    EXPECT_EQ(runtime::sampleVolumeSh(v, glm::vec3(-100.0f, -100.0f, -100.0f)),
+              distinctSh(glm::uvec3(0)));
+    // Beyond the +z face only: interpolates in x, y as usual, clamps in z.
+    const glm::vec3 near_top = g.gridToWorld(glm::vec3(1.5f, 0.5f, float(res.z - 1)));
+    expectShNear(runtime::sampleVolumeSh(v, near_top + glm::vec3(0.0f, 0.0f, 10.0f)),
+                 runtime::sampleVolumeSh(v, near_top), kInterpolationRelative, "beyond +z");
+}
+
+TEST(SamplerGrid, ResolutionOneAxesUseTheirSingleProbe) {
+    VolumeSpec spec;
+    spec.bounds = {glm::vec3(0.0f), glm::vec3(1.0f, 4.0f, 1.0f)};
+    spec.resolution = glm::uvec3(1, 4, 1);
+    const Volume column =
+        makeTestVolume(spec, [](glm::uvec3 c, glm::vec3) { return distinctSh(c); });
+    // Probes at y = 0.5, 1.5, 2.5, 3.5; x and z do not matter, even outside the box.
+    for (glm::vec2 xz : {glm::vec2(0.5f, 0.5f), glm::vec2(0.0f, 1.0f), glm::vec2(-3.0f, 7.0f)}) {
+        EXPECT_EQ(runtime::sampleVolumeSh(column, glm::vec3(xz.x, 2.5f, xz.y)),
+                  distinctSh(glm::uvec3(0, 2, 0)));
+        expectShNear(
+            runtime::sampleVolumeSh(column, glm::vec3(xz.x, 1.75f, xz.y)),
+            lerpSh(distinctSh(glm::uvec3(0, 1, 0)), distinctSh(glm::uvec3(0, 2, 0)), 0.25f),
+            kInterpolationRelative, "y = 1.75");
+    }
+
+    spec.resolution = glm::uvec3(1);
+    const Volume single =
+        makeTestVolume(spec, [](glm::uvec3 c, glm::vec3) { return distinctSh(c); });
+    for (glm::vec3 p :
+         {glm::vec3(0.5f, 2.0f, 0.5f), glm::vec3(0.0f), glm::vec3(9.0f, -9.0f, 3.0f)}) {
+        EXPECT_EQ(runtime::sampleVolumeSh(single, p), distinctSh(glm::uvec3(0)));
+    }
+}
+
+TEST(SamplerFrame, RotatedTranslatedVolumeFindsTheRightProbes) {
+    // Two probes along local x, at local (0.5, 0.5, 0.5) and (1.5, 0.5, 0.5). A quarter turn
+    // about +Y takes local +x to world -z; then the volume moves by (10, 0, 0). By hand:
+    //   probe 0 -> (0.5, 0.5, -0.5) + (10, 0, 0) = (10.5, 0.5, -0.5)
+    //   probe 1 -> (0.5, 0.5, -1.5) + (10, 0, 0) = (10.5, 0.5, -1.5)
+    VolumeSpec spec;
+    spec.bounds = {glm::vec3(0.0f), glm::vec3(2.0f, 1.0f, 1.0f)};
+    spec.resolution = glm::uvec3(2, 1, 1);
+    spec.frame = grid::RigidFrame{glm::angleAxis(0.5f * sh::kPi, glm::vec3(0, 1, 0)),
+                                  glm::vec3(10.0f, 0.0f, 0.0f)};
+    const Volume v = makeTestVolume(spec, [](glm::uvec3 c, glm::vec3) { return distinctSh(c); });
+    const sh::ShRgb p0 = distinctSh(glm::uvec3(0, 0, 0));
+    const sh::ShRgb p1 = distinctSh(glm::uvec3(1, 0, 0));
+    expectShNear(runtime::sampleVolumeSh(v, glm::vec3(10.5f, 0.5f, -0.5f)), p0, kFrameRelative,
+                 "probe 0");
+    expectShNear(runtime::sampleVolumeSh(v, glm::vec3(10.5f, 0.5f, -1.5f)), p1, kFrameRelative,
+                 "probe 1");
+    expectShNear(runtime::sampleVolumeSh(v, glm::vec3(10.5f, 0.5f, -1.25f)), lerpSh(p0, p1, 0.75f),
+                 kFrameRelative, "between");
+    // The world position of the untransformed volume's probe 1 is outside the moved box; it
+    // clamps to probe 0 (local x < 0.5), not to probe 1.
+    expectShNear(runtime::sampleVolumeSh(v, glm::vec3(1.5f, 0.5f, 0.5f)), p0, kFrameRelative,
+                 "old position");
+    EXPECT_FLOAT_EQ(runtime::volumeWeight(v, glm::vec3(10.5f, 0.5f, -1.0f)), 1.0f);
+    EXPECT_FLOAT_EQ(runtime::volumeWeight(v, glm::vec3(1.0f, 0.5f, 0.5f)), 0.0f);
+    EXPECT_NEAR(runtime::distanceToVolume(v, glm::vec3(10.5f, 0.5f, 1.0f)), 1.0f, kFrameRelative);
+}
+
+TEST(SamplerGrid, CornerAndCenterModesPlaceProbesDifferently) {
+    // Box [0, 3] on x with 4 probes: corner mode puts them at 0, 1, 2, 3; centre mode at
+    // 0.375, 1.125, 1.875, 2.625 (spacing 0.75). The field depends on the x index only.
+    auto by_x = [](glm::uvec3 c, glm::vec3) { return distinctSh(glm::uvec3(c.x, 0, 0)); };
+    VolumeSpec spec;
+    spec.bounds = {glm::vec3(0.0f), glm::vec3(3.0f, 1.0f, 1.0f)};
+    spec.resolution = glm::uvec3(4, 2, 2);
+    spec.mode = grid::PositionMode::Corner;
+    const Volume corner = makeTestVolume(spec, by_x);
+    spec.mode = grid::PositionMode::Center;
+    const Volume center = makeTestVolume(spec, by_x);
+    const sh::ShRgb p0 = distinctSh(glm::uvec3(0, 0, 0));
+    const sh::ShRgb p1 = distinctSh(glm::uvec3(1, 0, 0));
+
+    const glm::vec3 at_x1(1.0f, 0.5f, 0.5f);
+    expectShNear(runtime::sampleVolumeSh(corner, at_x1), p1, kInterpolationRelative,
+                 "corner x = 1");
+    // centre mode: grid x = 1 / 0.75 - 0.5 = 5/6 between probes 0 and 1
+    expectShNear(runtime::sampleVolumeSh(center, at_x1), lerpSh(p0, p1, 5.0f / 6.0f),
+                 kInterpolationRelative, "center x = 1");
+    // At the box's -x face, corner mode has a probe; centre mode clamps to its first probe.
+    const glm::vec3 at_face(0.0f, 0.5f, 0.5f);
+    expectShNear(runtime::sampleVolumeSh(corner, at_face), p0, kInterpolationRelative,
+                 "corner face");
+    expectShNear(runtime::sampleVolumeSh(center, at_face), p0, kInterpolationRelative,
+                 "center face");
+    expectShNear(runtime::sampleVolumeSh(corner, glm::vec3(0.375f, 0.5f, 0.5f)),
+                 lerpSh(p0, p1, 0.375f), kInterpolationRelative, "corner x = 0.375");
+    expectShNear(runtime::sampleVolumeSh(center, glm::vec3(0.375f, 0.5f, 0.5f)), p0,
+                 kInterpolationRelative, "center x = 0.375");
+}
+
+TEST(SamplerIrradiance, ConstantRadianceGivesPiLForEveryNormal) {
+    const glm::vec3 radiance(0.3f, 1.7f, 4.0f);
+    for (sh::Order order : {sh::Order::L1, sh::Order::L2}) {
+        for (Storage storage : {Storage::Float32, Storage::Float16}) {
+            VolumeSpec spec = exactGridSpec(storage);
+            spec.order = order;
+            const VolumeSet set({makeTestVolume(spec, constantField(radiance))});
+            const float tolerance = storage == Storage::Float16 ? kHalfRelative : kFurnaceRelative;
+            for (int i = 0; i < 64; ++i) {
+                const glm::vec3 n = sh::fibonacciDirection(i, 64);
+                for (glm::vec3 p : {glm::vec3(0.1f, 1.3f, -2.7f), glm::vec3(30.0f, -4.0f, 0.0f)}) {
+                    expectVec3Near(set.irradiance(p, n), furnaceE(radiance), tolerance,
+                                   "normal " + std::to_string(i));
+                }
+            }
+        }
+    }
+}
+
+TEST(VolumeSetBlend, FullyCoveringHighPriorityVolumeHidesLowerOnes) {
+    VolumeSpec high;
+    high.bounds = {glm::vec3(0.0f), glm::vec3(4.0f)};
+    high.priority = 5;
+    high.fade = 0.5f;
+    VolumeSpec low;
+    low.bounds = {glm::vec3(-10.0f), glm::vec3(10.0f)};
+    low.priority = 1;
+    const glm::vec3 l_high(1.0f), l_low(3.0f, 2.0f, 7.0f);
+    const glm::vec3 n(0.0f, 1.0f, 0.0f);
+    // File order must not matter: the higher priority wins either way.
+    const VolumeSet high_first(
+        {makeTestVolume(high, constantField(l_high)), makeTestVolume(low, constantField(l_low))});
+    const VolumeSet low_first(
+        {makeTestVolume(low, constantField(l_low)), makeTestVolume(high, constantField(l_high))});
+    for (const VolumeSet* set : {&high_first, &low_first}) {
+        expectVec3Near(set->irradiance(glm::vec3(2.0f), n), furnaceE(l_high), kFurnaceRelative,
+                       "deep inside the high-priority volume");
+        // Exactly fadeDistance deep: still full weight.
+        expectVec3Near(set->irradiance(glm::vec3(0.5f, 2.0f, 2.0f), n), furnaceE(l_high),
+                       kFurnaceRelative, "at the inner edge of the fade band");
+        expectVec3Near(set->irradiance(glm::vec3(-1.0f, 2.0f, 2.0f), n), furnaceE(l_low),
+                       kFurnaceRelative, "outside the high-priority volume");
+    }
+}
+
+TEST(VolumeSetBlend, FadeBandWeightsAreLinear) {
+    VolumeSpec spec;
+    spec.bounds = {glm::vec3(0.0f), glm::vec3(4.0f)};
+    spec.fade = 0.5f;
+    const Volume v = makeTestVolume(spec, constantField(glm::vec3(1.0f)));
+    // Depth = distance to the nearest face.
+    EXPECT_NEAR(runtime::volumeWeight(v, glm::vec3(0.0f, 2.0f, 2.0f)), 0.0f, kWeightTolerance);
+    EXPECT_NEAR(runtime::volumeWeight(v, glm::vec3(0.1f, 2.0f, 2.0f)), 0.2f, kWeightTolerance);
+    EXPECT_NEAR(runtime::volumeWeight(v, glm::vec3(2.0f, 3.8f, 2.0f)), 0.4f, kWeightTolerance);
+    EXPECT_NEAR(runtime::volumeWeight(v, glm::vec3(0.3f, 0.2f, 3.9f)), 0.2f, kWeightTolerance);
+    EXPECT_NEAR(runtime::volumeWeight(v, glm::vec3(0.5f, 2.0f, 2.0f)), 1.0f, kWeightTolerance);
+    EXPECT_NEAR(runtime::volumeWeight(v, glm::vec3(2.0f)), 1.0f, kWeightTolerance);
+    EXPECT_NEAR(runtime::volumeWeight(v, glm::vec3(-0.1f, 2.0f, 2.0f)), 0.0f, kWeightTolerance);
+    EXPECT_NEAR(runtime::volumeWeight(v, glm::vec3(2.0f, 2.0f, 4.5f)), 0.0f, kWeightTolerance);
+
+    // fadeDistance 0: a hard border, full weight up to and including the faces.
+    spec.fade = 0.0f;
+    const Volume hard = makeTestVolume(spec, constantField(glm::vec3(1.0f)));
+    EXPECT_EQ(runtime::volumeWeight(hard, glm::vec3(0.001f, 2.0f, 2.0f)), 1.0f);
+    EXPECT_EQ(runtime::volumeWeight(hard, glm::vec3(4.0f, 2.0f, 2.0f)), 1.0f);
+    EXPECT_EQ(runtime::volumeWeight(hard, glm::vec3(4.001f, 2.0f, 2.0f)), 0.0f);
+
+    // Three nested volumes at a point 0.2 m deep in A (fade 0.5: w = 0.4) and 0.25 m deep in B
+    // (fade 0.5: w = 0.5), well inside C:
+    //   a_A = 0.4, a_B = 0.5 * 0.6 = 0.3, a_C = 1 * 0.3 = 0.3, sum 1.
+    VolumeSpec a = spec, b = spec, c = spec;
+    a.bounds = {glm::vec3(0.0f), glm::vec3(4.0f)};
+    a.fade = 0.5f;
+    a.priority = 3;
+    b.bounds = {glm::vec3(-0.05f, -4.0f, -4.0f), glm::vec3(8.0f)};
+    b.fade = 0.5f;
+    b.priority = 2;
+    c.bounds = {glm::vec3(-20.0f), glm::vec3(20.0f)};
+    c.fade = 1.0f;
+    c.priority = 1;
+    const glm::vec3 la(1.0f, 0.0f, 0.0f), lb(0.0f, 1.0f, 0.0f), lc(0.0f, 0.0f, 1.0f);
+    // File order scrambled on purpose.
+    const VolumeSet set({makeTestVolume(c, constantField(lc)), makeTestVolume(a, constantField(la)),
+                         makeTestVolume(b, constantField(lb))});
+    const glm::vec3 p(0.2f, 2.0f, 2.0f);
+    const glm::vec3 expected = furnaceE(0.4f * la + 0.3f * lb + 0.3f * lc);
+    expectVec3Near(set.irradiance(p, glm::vec3(1.0f, 0.0f, 0.0f)), expected, kFurnaceRelative,
+                   "three-volume blend");
+}
+
+TEST(VolumeSetBlend, NoFadeToBlackAtTheOuterBorderOfTheLastVolume) {
+    VolumeSpec inner;
+    inner.bounds = {glm::vec3(0.0f), glm::vec3(4.0f)};
+    inner.fade = 1.0f;
+    inner.priority = 1;
+    VolumeSpec elsewhere;
+    elsewhere.bounds = {glm::vec3(10.0f), glm::vec3(12.0f)};
+    const glm::vec3 l_inner(2.0f, 1.0f, 0.5f);
+    const VolumeSet set({makeTestVolume(inner, constantField(l_inner)),
+                         makeTestVolume(elsewhere, constantField(glm::vec3(9.0f)))});
+    const glm::vec3 n = glm::normalize(glm::vec3(1.0f, -2.0f, 0.5f));
+    // Depths 0.5, 0.1 and 0.001 into a 1 m fade band, and exactly on the face: all full E.
+    for (float x : {0.5f, 0.1f, 0.001f, 0.0f}) {
+        expectVec3Near(set.irradiance(glm::vec3(x, 2.0f, 2.0f), n), furnaceE(l_inner),
+                       kFurnaceRelative, "x = " + std::to_string(x));
+    }
+}
+
+TEST(VolumeSetBlend, OutsideAllVolumesUsesTheNearestOne) {
+    VolumeSpec left;
+    left.bounds = {glm::vec3(0.0f), glm::vec3(1.0f)};
+    left.resolution = glm::uvec3(4);
+    left.priority = 0;
+    VolumeSpec right = left;
+    right.bounds = {glm::vec3(5.0f, 0.0f, 0.0f), glm::vec3(6.0f, 1.0f, 1.0f)};
+    auto distinct = [](glm::uvec3 c, glm::vec3) { return distinctSh(c); };
+    auto shifted = [](glm::uvec3 c, glm::vec3) { return distinctSh(c + 4u); };
+    const Volume vl = makeTestVolume(left, distinct);
+    const Volume vr = makeTestVolume(right, shifted);
+    const VolumeSet set({vl, vr});
+    const glm::vec3 n(0.0f, 0.0f, 1.0f);
+
+    // x = 3.9 is 1.1 m from the right box and 2.9 m from the left one; clamp addressing there
+    // gives the right volume's -x face values at (y, z).
+    const glm::vec3 p(3.9f, 0.3f, 0.8f);
+    EXPECT_NEAR(runtime::distanceToVolume(vr, p), 1.1f, kInterpolationRelative);
+    EXPECT_NEAR(runtime::distanceToVolume(vl, p), 2.9f, kInterpolationRelative);
+    const glm::vec3 expected =
+        sh::irradiance(runtime::sampleVolumeSh(vr, glm::vec3(5.0f, p.y, p.z)), sh::Order::L2, n);
+    expectVec3Near(set.irradiance(p, n), expected, kInterpolationRelative, "nearer the right");
+    const glm::vec3 q(1.5f, 2.0f, -1.0f);
+    expectVec3Near(set.irradiance(q, n),
+                   sh::irradiance(runtime::sampleVolumeSh(vl, q), sh::Order::L2, n),
+                   kInterpolationRelative, "nearer the left");
+
+    // Equidistant (x = 3): the higher priority wins; with equal priorities, file order.
+    const glm::vec3 mid(3.0f, 0.5f, 0.5f);
+    const glm::vec3 e_left = sh::irradiance(runtime::sampleVolumeSh(vl, mid), sh::Order::L2, n);
+    const glm::vec3 e_right = sh::irradiance(runtime::sampleVolumeSh(vr, mid), sh::Order::L2, n);
+    ASSERT_NE(e_left, e_right);
+    EXPECT_EQ(set.irradiance(mid, n), e_left);
+    EXPECT_EQ(VolumeSet({vr, vl}).irradiance(mid, n), e_right);
+    right.priority = 1;
+    const Volume vr_high = makeTestVolume(right, shifted);
+    EXPECT_EQ(VolumeSet({vl, vr_high}).irradiance(mid, n), e_right);
+}
+
+TEST(VolumeSetBlend, DistanceToVolume) {
+    VolumeSpec spec;
+    spec.bounds = {glm::vec3(0.0f), glm::vec3(2.0f)};
+    const Volume v = makeTestVolume(spec, constantField(glm::vec3(1.0f)));
+    EXPECT_EQ(runtime::distanceToVolume(v, glm::vec3(1.0f)), 0.0f);
+    EXPECT_EQ(runtime::distanceToVolume(v, glm::vec3(2.0f, 0.0f, 1.0f)), 0.0f);
+    EXPECT_FLOAT_EQ(runtime::distanceToVolume(v, glm::vec3(1.0f, 5.0f, 1.0f)), 3.0f);
+    EXPECT_FLOAT_EQ(runtime::distanceToVolume(v, glm::vec3(-1.0f, -1.0f, 3.0f)), std::sqrt(3.0f));
+}
+
+TEST(VolumeSetLoad, RoundTripsAFile) {
+    const std::filesystem::path path =
+        std::filesystem::path(::testing::TempDir()) / "sampler_roundtrip.pvol";
+    PvolFile file;
+    file.metadata.method = "synthetic";
+    VolumeSpec spec;
+    spec.priority = 4;
+    spec.fade = 0.25f;
+    file.volumes.push_back(makeTestVolume(spec, constantField(glm::vec3(0.5f, 1.0f, 2.0f))));
+    ASSERT_TRUE(writePvol(path, file).ok());
+    Result<VolumeSet> set = VolumeSet::load(path);
+    ASSERT_TRUE(set.ok()) << set.error().message;
+    ASSERT_EQ(set.value().volumes().size(), 1u);
+    EXPECT_EQ(set.value().volumes()[0].desc.blendPriority, 4);
+    expectVec3Near(set.value().irradiance(glm::vec3(0.5f), glm::vec3(0.0f, 1.0f, 0.0f)),
+                   furnaceE(glm::vec3(0.5f, 1.0f, 2.0f)), kFurnaceRelative, "loaded");
+    std::filesystem::remove(path);
+}
+
+TEST(VolumeSetLoad, ErrorsPassThroughTheFileMessage) {
+    const std::filesystem::path dir = ::testing::TempDir();
+    const std::filesystem::path missing = dir / "sampler_does_not_exist.pvol";
+    const std::filesystem::path garbage = dir / "sampler_garbage.pvol";
+    {
+        std::ofstream out(garbage, std::ios::binary);
+        out << "this is not a probe volume file, not even close";
+    }
+    for (const std::filesystem::path& path : {missing, garbage}) {
+        Result<VolumeSet> set = VolumeSet::load(path);
+        ASSERT_FALSE(set.ok()) << path;
+        const Result<PvolFile> direct = readPvol(path);
+        ASSERT_FALSE(direct.ok());
+        EXPECT_EQ(set.error().code, direct.error().code);
+        EXPECT_EQ(set.error().message, direct.error().message);
+        EXPECT_NE(set.error().message.find(path.filename().string()), std::string::npos)
+            << set.error().message;
+    }
+    std::filesystem::remove(garbage);
+}
