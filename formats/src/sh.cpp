@@ -16,7 +16,7 @@ namespace {
 // Loose enough for directions normalised in float and passed through a few transforms.
 constexpr float kUnitLengthTolerance = 1e-3f;
 
-bool isUnit(glm::vec3 dir) {
+[[maybe_unused]] bool isUnit(glm::vec3 dir) {
     return std::abs(glm::dot(dir, dir) - 1.0f) < kUnitLengthTolerance;
 }
 
