@@ -1,0 +1,103 @@
+// Lat-long environment maps through OpenImageIO (.hdr, .exr, or anything else it reads).
+//
+// The mapping from texels to directions is documented once, on Environment in scene.hpp.
+#include <cmath>
+#include <exception>
+#include <string>
+#include <vector>
+
+#include <OpenImageIO/imageio.h>
+
+#include "probekit/baker/scene.hpp"
+
+namespace probekit::baker {
+namespace {
+
+// A lat-long map is 2:1. Exporters sometimes write one pixel more or less (2049 x 1024) and
+// that only stretches the map by a fraction of a texel, so ratios within this relative
+// tolerance of 2 are accepted; anything further off (a cube-map cross, a 1:1 angular probe) is
+// not a lat-long map and is rejected rather than silently sampled with the wrong mapping.
+constexpr double kAspectTolerance = 0.05;
+
+} // namespace
+
+Result<Environment> loadLatLongEnvironment(const std::filesystem::path& path, float intensity,
+                                           float rotation_deg) {
+    const std::string file = path.string();
+    if (!std::isfinite(intensity) || intensity < 0.0f) {
+        return makeError(ErrorCode::OutOfRange, file + ": environment intensity " +
+                                                    std::to_string(intensity) +
+                                                    " must be finite and >= 0");
+    }
+    if (!std::isfinite(rotation_deg)) {
+        return makeError(ErrorCode::NonFinite, file + ": environment rotation must be finite");
+    }
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec)) {
+        return makeError(ErrorCode::Io, file + ": no such file");
+    }
+    try {
+        auto input = OIIO::ImageInput::open(file);
+        if (!input) {
+            return makeError(ErrorCode::Io,
+                             file + ": cannot read the image (" + OIIO::geterror() + ")");
+        }
+        const OIIO::ImageSpec& spec = input->spec();
+        const int width = spec.width;
+        const int height = spec.height;
+        const int channels = spec.nchannels;
+        if (width <= 0 || height <= 0 || channels <= 0 || spec.depth > 1) {
+            return makeError(ErrorCode::InvalidArgument,
+                             file + ": not a 2D image (" + std::to_string(width) + " x " +
+                                 std::to_string(height) + " x " + std::to_string(spec.depth) +
+                                 ", " + std::to_string(channels) + " channels)");
+        }
+        const double aspect = double(width) / double(height);
+        if (std::abs(aspect / 2.0 - 1.0) > kAspectTolerance) {
+            return makeError(ErrorCode::InvalidArgument, file + ": " + std::to_string(width) +
+                                                             " x " + std::to_string(height) +
+                                                             " is not a 2:1 lat-long image");
+        }
+
+        std::vector<float> pixels(size_t(width) * size_t(height) * size_t(channels));
+        // Reading as FLOAT makes OIIO convert whatever the file stores (RGBE, half, 8-bit).
+        if (!input->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, pixels.data())) {
+            return makeError(ErrorCode::Io,
+                             file + ": cannot decode the pixels (" + input->geterror() + ")");
+        }
+        input->close();
+
+        Environment environment;
+        environment.type = Environment::Type::LatLong;
+        environment.intensity = intensity;
+        environment.rotationDeg = rotation_deg;
+        environment.source = file;
+        Image& image = environment.image;
+        image.width = static_cast<uint32_t>(width);
+        image.height = static_cast<uint32_t>(height);
+        image.texels.resize(size_t(width) * size_t(height));
+        // One or two channels are grey (+ alpha); otherwise the first three are RGB. Alpha and
+        // extra channels carry no radiance and are ignored.
+        const int colour_channels = channels >= 3 ? 3 : 1;
+        for (size_t t = 0; t < image.texels.size(); ++t) {
+            const float* texel = &pixels[t * size_t(channels)];
+            for (int c = 0; c < colour_channels; ++c) {
+                if (!std::isfinite(texel[c]) || texel[c] < 0.0f) {
+                    return makeError(std::isfinite(texel[c]) ? ErrorCode::OutOfRange
+                                                             : ErrorCode::NonFinite,
+                                     file + ": pixel (" + std::to_string(t % size_t(width)) + ", " +
+                                         std::to_string(t / size_t(width)) + ") channel " +
+                                         std::to_string(c) + " = " + std::to_string(texel[c]) +
+                                         " is not a finite, non-negative radiance");
+                }
+            }
+            image.texels[t] = colour_channels == 3 ? glm::vec4(texel[0], texel[1], texel[2], 1.0f)
+                                                   : glm::vec4(texel[0], texel[0], texel[0], 1.0f);
+        }
+        return environment;
+    } catch (const std::exception& e) {
+        return makeError(ErrorCode::Io, file + ": " + e.what());
+    }
+}
+
+} // namespace probekit::baker
