@@ -1,0 +1,288 @@
+#include "path_integrator.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <numbers>
+#include <optional>
+
+#include <glm/geometric.hpp>
+
+#include "rng.hpp"
+
+namespace probekit::baker {
+
+namespace {
+
+constexpr float kInvPi = std::numbers::inv_pi_v<float>;
+constexpr float kTwoPi = 2.0f * std::numbers::pi_v<float>;
+constexpr float kFourPi = 4.0f * std::numbers::pi_v<float>;
+
+// Samples are summed into a block before the block joins the total, so that a probe of many
+// thousand samples does not lose the small late terms to float rounding of one long sum.
+constexpr uint32_t kSamplesPerBlock = 64;
+
+// Veach's power heuristic (beta = 2), pdf^2 / (pdf^2 + other^2), written so that huge pdfs (a
+// grazing emitter) give 1 or 0 instead of inf / inf. Precondition: pdf > 0.
+float powerHeuristic(float pdf, float other_pdf) {
+    const float ratio = other_pdf / pdf;
+    return 1.0f / (1.0f + ratio * ratio);
+}
+
+float maxComponent(glm::vec3 v) {
+    return std::max(v.x, std::max(v.y, v.z));
+}
+
+bool isBlack(glm::vec3 v) {
+    return v.x == 0.0f && v.y == 0.0f && v.z == 0.0f;
+}
+
+struct LightDirection {
+    glm::vec3 direction; // unit, from the point towards the light
+    float distance;      // to the light; infinite for directional lights
+};
+
+// Where a punctual light is seen from `point`; nothing for a point or spot light at the point.
+std::optional<LightDirection> directionToLight(const PunctualLight& light, glm::vec3 point) {
+    if (light.type == LightType::Directional) {
+        return LightDirection{-glm::normalize(light.direction), kInfinity};
+    }
+    const glm::vec3 offset = light.position - point;
+    const float distance = glm::length(offset);
+    if (!(distance > 0.0f)) {
+        return std::nullopt;
+    }
+    return LightDirection{offset / distance, distance};
+}
+
+// Equal-area map of the unit square onto the sphere: z = 1 - 2u, phi = 2 pi v.
+glm::vec3 sphereDirection(glm::vec2 u) {
+    const float z = 1.0f - 2.0f * u.x;
+    const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
+    const float phi = kTwoPi * u.y;
+    return glm::vec3(r * std::cos(phi), r * std::sin(phi), z);
+}
+
+// Cosine-weighted direction about unit `n` (pdf cos / pi), through the branchless orthonormal
+// basis of Duff et al., "Building an Orthonormal Basis, Revisited" (JCGT 2017).
+glm::vec3 cosineDirection(glm::vec3 n, glm::vec2 u) {
+    const float sign = std::copysign(1.0f, n.z);
+    const float a = -1.0f / (sign + n.z);
+    const float b = n.x * n.y * a;
+    const glm::vec3 tangent(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    const glm::vec3 bitangent(b, sign + n.y * n.y * a, -n.y);
+    const float r = std::sqrt(u.x);
+    const float phi = kTwoPi * u.y;
+    // 1 - u.x >= 2^-24, so the direction is never tangent to the surface.
+    const float z = std::sqrt(1.0f - u.x);
+    return glm::normalize(r * std::cos(phi) * tangent + r * std::sin(phi) * bitangent + z * n);
+}
+
+} // namespace
+
+PathIntegrator::PathIntegrator(const Scene& scene, const RayTracer& tracer, PathSettings settings,
+                               sh::Order order)
+    : m_scene(scene), m_tracer(tracer), m_settings(settings), m_order(order), m_lights(scene),
+      m_environmentBlack(scene.environment.isBlack()) {
+    assert(settings.samples >= 1);
+    assert(tracer.triangleCount() == scene.triangles.size());
+}
+
+ProbeSample PathIntegrator::bakeProbe(glm::vec3 position, uint64_t seed, uint32_t volume_index,
+                                      uint64_t probe_index) const {
+    const ScopedFloatMode float_mode;
+    const uint64_t probe_key = hashKeys(seed, volume_index, probe_index);
+    const auto sobol_seed = uint32_t(probe_key ^ (probe_key >> 32));
+    const uint32_t n = m_settings.samples;
+    const float weight = kFourPi / float(n);
+
+    ProbeSample result{};
+    sh::ShRgb block{};
+    uint64_t back_faces = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        const glm::vec3 dir = sphereDirection(scrambledSobol2d(i, sobol_seed));
+        Rng rng(hashKeys(probe_key, i));
+        PathStats stats;
+        const glm::vec3 radiance = incidentRadiance(position, dir, rng, stats);
+        result.rays += stats.rays;
+        back_faces += stats.primaryBackFace ? 1 : 0;
+        sh::addSample(block, m_order, dir, radiance, weight);
+        if ((i + 1) % kSamplesPerBlock == 0 || i + 1 == n) {
+            result.sh += block;
+            block = sh::ShRgb{};
+        }
+    }
+    result.backFaceFraction = float(double(back_faces) / double(n));
+
+    // Delta lights at the probe itself, projected exactly.
+    for (const PunctualLight& light : m_scene.lights) {
+        const std::optional<LightDirection> to_light = directionToLight(light, position);
+        if (!to_light) {
+            continue;
+        }
+        const glm::vec3 irradiance = light.irradianceAt(position);
+        if (isBlack(irradiance)) {
+            continue;
+        }
+        ++result.rays;
+        if (!m_tracer.occluded(position, to_light->direction, to_light->distance)) {
+            result.sh += sh::projectDelta(to_light->direction, irradiance, m_order);
+        }
+    }
+    return result;
+}
+
+glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, Rng& rng,
+                                           PathStats& stats) const {
+    std::optional<Hit> hit = m_tracer.intersect(origin, dir);
+    ++stats.rays;
+    if (!hit) {
+        return m_environmentBlack ? glm::vec3(0.0f) : m_scene.environment.radiance(dir);
+    }
+    stats.primaryBackFace = hit->backFace;
+
+    glm::vec3 radiance(0.0f);
+    glm::vec3 throughput(1.0f);
+    glm::vec3 previous_position = origin;
+    float continuation_pdf = 0.0f; // pdf of the direction that reached `hit` (0: the probe's)
+    for (uint32_t vertex = 0;;) {
+        const glm::vec3 position = m_tracer.surfacePoint(hit->triangle, hit->bary);
+        const Material& material = m_scene.materials[m_scene.triangleMaterial[hit->triangle]];
+        if (material.isEmissive()) {
+            const glm::vec3 emitted = m_scene.emissionAt(hit->triangle, hit->bary);
+            // Seen from the probe: no light sampling competes, full weight. Otherwise the
+            // continuation competes with next-event estimation of the same point.
+            const float mis_weight =
+                vertex == 0
+                    ? 1.0f
+                    : powerHeuristic(continuation_pdf,
+                                     emitterPdfSolidAngle(*hit, position - previous_position));
+            radiance += throughput * emitted * mis_weight;
+        }
+        if (vertex == m_settings.maxBounces) {
+            break;
+        }
+        ++vertex;
+
+        const glm::vec3 albedo = m_scene.albedoAt(hit->triangle, hit->bary);
+        if (isBlack(albedo)) {
+            break;
+        }
+        const glm::vec3 normal = hit->backFace ? -hit->geometricNormal : hit->geometricNormal;
+        const glm::vec3 offset_origin =
+            RayTracer::offsetOrigin(position, hit->geometricNormal, normal);
+        radiance +=
+            throughput * albedo * kInvPi * directLight(position, offset_origin, normal, rng, stats);
+
+        // Continuation: cosine sampling makes the Lambertian weight f cos / pdf = albedo.
+        const glm::vec3 next_dir = cosineDirection(normal, rng.uniform2());
+        continuation_pdf = glm::dot(normal, next_dir) * kInvPi;
+        throughput *= albedo;
+        if (vertex >= m_settings.rouletteStartBounce) {
+            const float survival = std::min(1.0f, maxComponent(throughput));
+            if (rng.uniform() >= survival) {
+                break;
+            }
+            throughput /= survival;
+        }
+        hit = m_tracer.intersect(offset_origin, next_dir);
+        ++stats.rays;
+        if (!hit) {
+            if (!m_environmentBlack) {
+                const float mis_weight =
+                    m_lights.hasEnvironmentSampling()
+                        ? powerHeuristic(continuation_pdf, m_lights.environmentPdf(next_dir))
+                        : 1.0f;
+                radiance += throughput * m_scene.environment.radiance(next_dir) * mis_weight;
+            }
+            break;
+        }
+        previous_position = position;
+    }
+    return radiance;
+}
+
+glm::vec3 PathIntegrator::directLight(glm::vec3 position, glm::vec3 offset_origin, glm::vec3 normal,
+                                      Rng& rng, PathStats& stats) const {
+    glm::vec3 sum(0.0f);
+
+    // (a) Punctual and directional lights: deltas, one shadow ray each.
+    for (const PunctualLight& light : m_scene.lights) {
+        const std::optional<LightDirection> to_light = directionToLight(light, position);
+        if (!to_light) {
+            continue;
+        }
+        const float cos_theta = glm::dot(normal, to_light->direction);
+        if (cos_theta <= 0.0f) {
+            continue;
+        }
+        const glm::vec3 irradiance = light.irradianceAt(position);
+        if (isBlack(irradiance)) {
+            continue;
+        }
+        ++stats.rays;
+        if (!m_tracer.occluded(offset_origin, to_light->direction, to_light->distance)) {
+            sum += irradiance * cos_theta;
+        }
+    }
+
+    // (b) One emissive-triangle sample, MIS against the cosine-sampled continuation.
+    if (m_lights.hasEmitters()) {
+        const double u_pick = rng.uniformDouble();
+        const LightSampler::EmitterSample s = m_lights.sampleEmitter(u_pick, rng.uniform2());
+        const glm::vec3 to_emitter = s.position - position;
+        const float distance_squared = glm::dot(to_emitter, to_emitter);
+        if (distance_squared > 0.0f) {
+            const glm::vec3 wi = to_emitter / std::sqrt(distance_squared);
+            const float cos_theta = glm::dot(normal, wi);
+            const float cos_emitter = std::abs(glm::dot(s.normal, wi)); // two-sided emitters
+            if (cos_theta > 0.0f && cos_emitter > 0.0f) {
+                const glm::vec3 emitted = m_scene.emissionAt(s.triangle, s.bary);
+                const float pdf = s.pdfArea * distance_squared / cos_emitter;
+                if (!isBlack(emitted) && pdf > 0.0f) {
+                    // Both ends leave their surfaces; with an unnormalised direction t = 1 is
+                    // the (offset) emitter point.
+                    const glm::vec3 target = RayTracer::offsetOrigin(s.position, s.normal, -wi);
+                    ++stats.rays;
+                    if (!m_tracer.occluded(offset_origin, target - offset_origin, 1.0f)) {
+                        sum +=
+                            emitted * (cos_theta * powerHeuristic(pdf, cos_theta * kInvPi) / pdf);
+                    }
+                }
+            }
+        }
+    }
+
+    // (c) One environment sample for lat-long maps, MIS against the continuation.
+    if (m_lights.hasEnvironmentSampling()) {
+        const double u_row = rng.uniformDouble();
+        const double u_column = rng.uniformDouble();
+        const LightSampler::DirectionSample s =
+            m_lights.sampleEnvironment(u_row, u_column, rng.uniform2());
+        const float cos_theta = glm::dot(normal, s.direction);
+        if (cos_theta > 0.0f && s.pdf > 0.0f) {
+            ++stats.rays;
+            if (!m_tracer.occluded(offset_origin, s.direction, kInfinity)) {
+                sum += m_scene.environment.radiance(s.direction) *
+                       (cos_theta * powerHeuristic(s.pdf, cos_theta * kInvPi) / s.pdf);
+            }
+        }
+    }
+    return sum;
+}
+
+float PathIntegrator::emitterPdfSolidAngle(const Hit& hit, glm::vec3 from_previous) const {
+    const float pdf_area = m_lights.emitterPdfArea(hit.triangle);
+    if (pdf_area == 0.0f) {
+        return 0.0f;
+    }
+    const float distance_squared = glm::dot(from_previous, from_previous);
+    if (!(distance_squared > 0.0f)) {
+        return 0.0f;
+    }
+    const float cos_emitter =
+        std::abs(glm::dot(hit.geometricNormal, from_previous)) / std::sqrt(distance_squared);
+    return cos_emitter > 0.0f ? pdf_area * distance_squared / cos_emitter : 0.0f;
+}
+
+} // namespace probekit::baker

@@ -1,0 +1,103 @@
+// probekit::baker::PathIntegrator — the path-traced reference for SH light probes.
+//
+// This is the accuracy reference every faster method is measured against, so it is unbiased
+// first (up to the documented bounce cap) and fast second.
+//
+// Per probe, `samples` directions cover the whole sphere: point i of a per-probe shuffled,
+// Owen-scrambled 2D Sobol sequence (rng.hpp) mapped by z = 1 - 2u, phi = 2 pi v (an equal-area
+// map), so each direction is uniform on the sphere and the set is stratified; each incident
+// radiance is projected with weight 4 pi / N (sh::addSample).
+//
+// Incident radiance along a direction is estimated by unidirectional path tracing:
+//  * Surfaces are two-sided Lambertian (Scene::albedoAt) and two-sided emitters
+//    (Scene::emissionAt); the shading normal is the geometric normal turned to face the
+//    arriving ray. Emission seen directly from the probe counts fully (the probe is not a
+//    surface and samples no lights).
+//  * At every diffuse vertex: next-event estimation to (a) every punctual light (point, spot,
+//    directional: PunctualLight::irradianceAt x cos x albedo / pi, one shadow ray each),
+//    (b) one emissive-triangle sample (LightSampler), (c) one environment sample for lat-long
+//    maps (LightSampler). (b) and (c) are combined with the cosine-sampled continuation by
+//    multiple importance sampling with the power heuristic (Veach 1997, ch. 9). A constant
+//    environment is reached by the continuation only (cosine sampling is already ideal there).
+//  * Russian roulette on the continuation from the rouletteStartBounce-th vertex on:
+//    survival probability min(1, max channel of the path throughput), the survivor divided
+//    by it (unbiased).
+//  * maxBounces caps the number of diffuse vertices; the emission reached after the last one is
+//    still counted, so maxBounces = 0 keeps only what the probe sees directly. The cap
+//    truncates energy: in a closed room of albedo a the missing fraction is a^(maxBounces+1),
+//    so reference scenes need far more than the default 8 (the Cornell reference uses 64).
+//
+// Punctual and directional lights are deltas: no sampled direction can hit them, so their
+// direct light at the probe is added analytically, projectDelta(dir to light, irradianceAt(p))
+// when the shadow ray from the probe is unoccluded.
+#pragma once
+
+#include <cstdint>
+
+#include <glm/vec3.hpp>
+
+#include "light_sampler.hpp"
+#include "probekit/baker/scene.hpp"
+#include "probekit/formats/sh.hpp"
+#include "ray_tracer.hpp"
+
+namespace probekit::baker {
+
+class Rng;
+
+struct PathSettings {
+    uint32_t samples = 1024;          // directions per probe (>= 1)
+    uint32_t maxBounces = 8;          // diffuse vertices per path; truncates energy (see above)
+    uint32_t rouletteStartBounce = 3; // first vertex whose continuation may be terminated
+};
+
+struct ProbeSample {
+    sh::ShRgb sh;           // radiance SH, world frame, `order` coefficients (rest zero)
+    float backFaceFraction; // primary rays that hit a back face / all primary rays
+    uint64_t rays;          // every ray traced: primary, continuation and shadow
+};
+
+class PathIntegrator {
+public:
+    // `scene` and `tracer` (built from the same scene) must outlive the integrator. Builds the
+    // light-sampling distributions once.
+    PathIntegrator(const Scene& scene, const RayTracer& tracer, PathSettings settings,
+                   sh::Order order);
+
+    // Thread-safe and deterministic: every random number comes from (seed, volume_index,
+    // probe_index, sample index) through rng.hpp, so the result is bit-identical whatever the
+    // thread or call order. Sets flush-to-zero / denormals-are-zero for its duration (Embree's
+    // recommended mode) and restores the caller's mode, so results do not depend on the
+    // calling thread's floating-point state either.
+    ProbeSample bakeProbe(glm::vec3 position, uint64_t seed, uint32_t volume_index,
+                          uint64_t probe_index) const;
+
+private:
+    struct PathStats {
+        uint64_t rays = 0;
+        bool primaryBackFace = false;
+    };
+
+    // Radiance arriving at `origin` from direction `dir` (unit), estimated with one path.
+    glm::vec3 incidentRadiance(glm::vec3 origin, glm::vec3 dir, Rng& rng, PathStats& stats) const;
+
+    // Next-event estimation at a diffuse vertex: the sum over lights of (incident radiance x
+    // cos / pdf, MIS-weighted), to be multiplied by albedo / pi. `offset_origin` is the vertex
+    // moved off the surface to the side of `normal` (the shading normal).
+    glm::vec3 directLight(glm::vec3 position, glm::vec3 offset_origin, glm::vec3 normal, Rng& rng,
+                          PathStats& stats) const;
+
+    // Solid-angle pdf with which next-event estimation at the previous vertex would have picked
+    // `hit`, reached along `from_previous` (hit point - previous vertex; 0 if the
+    // triangle is not an emitter), for the MIS weight of the continuation that reached it.
+    float emitterPdfSolidAngle(const Hit& hit, glm::vec3 from_previous) const;
+
+    const Scene& m_scene;
+    const RayTracer& m_tracer;
+    PathSettings m_settings;
+    sh::Order m_order;
+    LightSampler m_lights;
+    bool m_environmentBlack;
+};
+
+} // namespace probekit::baker
