@@ -11,3 +11,17 @@ if(PROBEKIT_BUILD_TESTS)
     find_package(GTest CONFIG REQUIRED)
     find_package(benchmark CONFIG REQUIRED)
 endif()
+
+# Baker-only dependencies. They stay behind baker/'s .cpp files (never in a public header).
+find_package(embree 3 CONFIG REQUIRED)
+find_package(TinyGLTF CONFIG REQUIRED)
+find_package(OpenImageIO CONFIG REQUIRED)
+# Debian's OpenImageIO config names /usr/include/opencv4, which no package here installs;
+# drop it from the imported target so consumers do not get a missing include directory.
+foreach(prop INTERFACE_INCLUDE_DIRECTORIES INTERFACE_SYSTEM_INCLUDE_DIRECTORIES)
+    get_target_property(dirs OpenImageIO::OpenImageIO ${prop})
+    if(dirs)
+        list(FILTER dirs EXCLUDE REGEX "opencv4")
+        set_target_properties(OpenImageIO::OpenImageIO PROPERTIES ${prop} "${dirs}")
+    endif()
+endforeach()

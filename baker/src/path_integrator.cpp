@@ -17,6 +17,8 @@ namespace {
 constexpr float kInvPi = std::numbers::inv_pi_v<float>;
 constexpr float kTwoPi = 2.0f * std::numbers::pi_v<float>;
 constexpr float kFourPi = 4.0f * std::numbers::pi_v<float>;
+// The probe's own directions are uniform over the sphere.
+constexpr float kProbeDirectionPdf = 1.0f / kFourPi;
 
 // Samples are summed into a block before the block joins the total, so that a probe of many
 // thousand samples does not lose the small late terms to float rounding of one long sum.
@@ -104,6 +106,7 @@ ProbeSample PathIntegrator::bakeProbe(glm::vec3 position, uint64_t seed, uint32_
         Rng rng(hashKeys(probe_key, i));
         PathStats stats;
         const glm::vec3 radiance = incidentRadiance(position, dir, rng, stats);
+        probeDirectLight(position, 1.0f / float(n), rng, block, stats);
         result.rays += stats.rays;
         back_faces += stats.primaryBackFace ? 1 : 0;
         sh::addSample(block, m_order, dir, radiance, weight);
@@ -137,26 +140,32 @@ glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, Rng&
     std::optional<Hit> hit = m_tracer.intersect(origin, dir);
     ++stats.rays;
     if (!hit) {
-        return m_environmentBlack ? glm::vec3(0.0f) : m_scene.environment.radiance(dir);
+        if (m_environmentBlack) {
+            return glm::vec3(0.0f);
+        }
+        // The probe also samples the environment directly (probeDirectLight).
+        const float mis_weight =
+            m_lights.hasEnvironmentSampling()
+                ? powerHeuristic(kProbeDirectionPdf, m_lights.environmentPdf(dir))
+                : 1.0f;
+        return m_scene.environment.radiance(dir) * mis_weight;
     }
     stats.primaryBackFace = hit->backFace;
 
     glm::vec3 radiance(0.0f);
     glm::vec3 throughput(1.0f);
     glm::vec3 previous_position = origin;
-    float continuation_pdf = 0.0f; // pdf of the direction that reached `hit` (0: the probe's)
+    // pdf of the direction that reached `hit`: the probe's directions are uniform on the sphere.
+    float continuation_pdf = kProbeDirectionPdf;
     for (uint32_t vertex = 0;;) {
         const glm::vec3 position = m_tracer.surfacePoint(hit->triangle, hit->bary);
         const Material& material = m_scene.materials[m_scene.triangleMaterial[hit->triangle]];
         if (material.isEmissive()) {
             const glm::vec3 emitted = m_scene.emissionAt(hit->triangle, hit->bary);
-            // Seen from the probe: no light sampling competes, full weight. Otherwise the
-            // continuation competes with next-event estimation of the same point.
-            const float mis_weight =
-                vertex == 0
-                    ? 1.0f
-                    : powerHeuristic(continuation_pdf,
-                                     emitterPdfSolidAngle(*hit, position - previous_position));
+            // The direction that reached this emitter competes with next-event estimation of
+            // the same point, from the previous vertex or from the probe itself.
+            const float mis_weight = powerHeuristic(
+                continuation_pdf, emitterPdfSolidAngle(*hit, position - previous_position));
             radiance += throughput * emitted * mis_weight;
         }
         if (vertex == m_settings.maxBounces) {
@@ -202,6 +211,59 @@ glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, Rng&
     return radiance;
 }
 
+std::optional<PathIntegrator::EmitterSampleFrom>
+PathIntegrator::sampleEmitterFrom(glm::vec3 position, Rng& rng) const {
+    if (!m_lights.hasEmitters()) {
+        return std::nullopt;
+    }
+    const double u_pick = rng.uniformDouble();
+    const LightSampler::EmitterSample s = m_lights.sampleEmitter(u_pick, rng.uniform2());
+    const glm::vec3 to_emitter = s.position - position;
+    const float distance_squared = glm::dot(to_emitter, to_emitter);
+    if (!(distance_squared > 0.0f)) {
+        return std::nullopt;
+    }
+    const glm::vec3 wi = to_emitter / std::sqrt(distance_squared);
+    const float cos_emitter = std::abs(glm::dot(s.normal, wi)); // two-sided emitters
+    const glm::vec3 emitted = m_scene.emissionAt(s.triangle, s.bary);
+    if (!(cos_emitter > 0.0f) || isBlack(emitted)) {
+        return std::nullopt;
+    }
+    const float pdf = s.pdfArea * distance_squared / cos_emitter;
+    if (!(pdf > 0.0f)) {
+        return std::nullopt;
+    }
+    // Both ends leave their surfaces; with an unnormalised direction, t = 1 is the (offset)
+    // emitter point.
+    return EmitterSampleFrom{wi, emitted, pdf, RayTracer::offsetOrigin(s.position, s.normal, -wi)};
+}
+
+void PathIntegrator::probeDirectLight(glm::vec3 position, float sample_weight, Rng& rng,
+                                      sh::ShRgb& sh, PathStats& stats) const {
+    if (const std::optional<EmitterSampleFrom> e = sampleEmitterFrom(position, rng)) {
+        ++stats.rays;
+        if (!m_tracer.occluded(position, e->target - position, 1.0f)) {
+            const float w = powerHeuristic(e->pdf, kProbeDirectionPdf);
+            sh::addSample(sh, m_order, e->direction, e->emitted * (w / e->pdf), sample_weight);
+        }
+    }
+    if (m_lights.hasEnvironmentSampling()) {
+        const double u_row = rng.uniformDouble();
+        const double u_column = rng.uniformDouble();
+        const LightSampler::DirectionSample s =
+            m_lights.sampleEnvironment(u_row, u_column, rng.uniform2());
+        if (s.pdf > 0.0f) {
+            ++stats.rays;
+            if (!m_tracer.occluded(position, s.direction, kInfinity)) {
+                const float w = powerHeuristic(s.pdf, kProbeDirectionPdf);
+                sh::addSample(sh, m_order, s.direction,
+                              m_scene.environment.radiance(s.direction) * (w / s.pdf),
+                              sample_weight);
+            }
+        }
+    }
+}
+
 glm::vec3 PathIntegrator::directLight(glm::vec3 position, glm::vec3 offset_origin, glm::vec3 normal,
                                       Rng& rng, PathStats& stats) const {
     glm::vec3 sum(0.0f);
@@ -227,28 +289,13 @@ glm::vec3 PathIntegrator::directLight(glm::vec3 position, glm::vec3 offset_origi
     }
 
     // (b) One emissive-triangle sample, MIS against the cosine-sampled continuation.
-    if (m_lights.hasEmitters()) {
-        const double u_pick = rng.uniformDouble();
-        const LightSampler::EmitterSample s = m_lights.sampleEmitter(u_pick, rng.uniform2());
-        const glm::vec3 to_emitter = s.position - position;
-        const float distance_squared = glm::dot(to_emitter, to_emitter);
-        if (distance_squared > 0.0f) {
-            const glm::vec3 wi = to_emitter / std::sqrt(distance_squared);
-            const float cos_theta = glm::dot(normal, wi);
-            const float cos_emitter = std::abs(glm::dot(s.normal, wi)); // two-sided emitters
-            if (cos_theta > 0.0f && cos_emitter > 0.0f) {
-                const glm::vec3 emitted = m_scene.emissionAt(s.triangle, s.bary);
-                const float pdf = s.pdfArea * distance_squared / cos_emitter;
-                if (!isBlack(emitted) && pdf > 0.0f) {
-                    // Both ends leave their surfaces; with an unnormalised direction t = 1 is
-                    // the (offset) emitter point.
-                    const glm::vec3 target = RayTracer::offsetOrigin(s.position, s.normal, -wi);
-                    ++stats.rays;
-                    if (!m_tracer.occluded(offset_origin, target - offset_origin, 1.0f)) {
-                        sum +=
-                            emitted * (cos_theta * powerHeuristic(pdf, cos_theta * kInvPi) / pdf);
-                    }
-                }
+    if (const std::optional<EmitterSampleFrom> e = sampleEmitterFrom(position, rng)) {
+        const float cos_theta = glm::dot(normal, e->direction);
+        if (cos_theta > 0.0f) {
+            ++stats.rays;
+            if (!m_tracer.occluded(offset_origin, e->target - offset_origin, 1.0f)) {
+                sum +=
+                    e->emitted * (cos_theta * powerHeuristic(e->pdf, cos_theta * kInvPi) / e->pdf);
             }
         }
     }

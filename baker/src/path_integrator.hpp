@@ -33,6 +33,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 
 #include <glm/vec3.hpp>
 
@@ -80,6 +81,25 @@ private:
 
     // Radiance arriving at `origin` from direction `dir` (unit), estimated with one path.
     glm::vec3 incidentRadiance(glm::vec3 origin, glm::vec3 dir, Rng& rng, PathStats& stats) const;
+
+    // One emissive-triangle sample seen from `position`: direction, emitted radiance, solid-angle
+    // pdf and the shadow-ray target (the emitter point moved off its surface). Nothing when the
+    // sample cannot contribute (no emitters, seen edge-on, black).
+    struct EmitterSampleFrom {
+        glm::vec3 direction;
+        glm::vec3 emitted;
+        float pdf;
+        glm::vec3 target;
+    };
+    std::optional<EmitterSampleFrom> sampleEmitterFrom(glm::vec3 position, Rng& rng) const;
+
+    // Next-event estimation at the probe itself: one emissive-triangle sample and (for lat-long
+    // maps) one environment sample, MIS-weighted against the probe's uniform sphere directions
+    // (pdf 1 / 4 pi). Adds `radiance / pdf x weight` at the sampled direction into `sh` with
+    // sample weight `sample_weight` (1 / N). A small bright emitter seen directly is otherwise
+    // the dominant noise of the probe.
+    void probeDirectLight(glm::vec3 position, float sample_weight, Rng& rng, sh::ShRgb& sh,
+                          PathStats& stats) const;
 
     // Next-event estimation at a diffuse vertex: the sum over lights of (incident radiance x
     // cos / pdf, MIS-weighted), to be multiplied by albedo / pi. `offset_origin` is the vertex

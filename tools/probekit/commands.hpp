@@ -19,5 +19,8 @@ void addInfoCommand(CLI::App& app, Command& selected);
 void addValidateCommand(CLI::App& app, Command& selected);
 void addSynthCommand(CLI::App& app, Command& selected);
 void addSampleCommand(CLI::App& app, Command& selected);
+void addBakeCommand(CLI::App& app, Command& selected);
+void addSceneCommand(CLI::App& app, Command& selected);
+void addBenchRaysCommand(CLI::App& app, Command& selected);
 
 } // namespace probekit::cli

@@ -13,6 +13,10 @@ int main(int argc, char** argv) {
     probekit::cli::addInfoCommand(app, selected);
     probekit::cli::addValidateCommand(app, selected);
     probekit::cli::addSynthCommand(app, selected);
+    probekit::cli::addSceneCommand(app, selected);
+    probekit::cli::addBakeCommand(app, selected);
+    probekit::cli::addBenchRaysCommand(app, selected);
+    probekit::cli::addSampleCommand(app, selected);
 
     try {
         app.parse(argc, argv);

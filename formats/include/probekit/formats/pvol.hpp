@@ -1,7 +1,7 @@
 // probekit .pvol — the file that carries baked probe volumes from baker to runtime.
 //
 // Byte layout (all integers little-endian):
-//   offset  0  magic         8 bytes  "PKVOL\r\n\x1a" + '\0'
+//   offset  0  magic         8 bytes  "PKVOL\r\n\x1a" (exactly these 8 bytes, no terminator)
 //   offset  8  version       u32      kPvolVersion
 //   offset 12  header bytes  u32      32 (room to grow the header)
 //   offset 16  payload bytes u64      N

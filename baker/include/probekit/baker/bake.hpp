@@ -1,0 +1,134 @@
+// probekit::baker — bake configuration, volume placement and the bake itself.
+//
+// A bake takes a Scene (scene.hpp) and a BakeConfig (usually parsed from the JSON config and
+// overridden by command-line flags), places the volumes, runs the lighting method for every
+// probe on a thread pool, marks probes inside geometry invalid and fills them by dilation, and
+// returns a PvolFile ready to write. Output is bit-identical for any thread count.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "probekit/baker/scene.hpp"
+#include "probekit/formats/pvol.hpp"
+#include "probekit/formats/result.hpp"
+
+namespace probekit::baker {
+
+enum class BoundsMode : uint8_t {
+    Custom,    // center + size, or min + max
+    AutoWorld, // world AABB of the scene, or of the listed nodes
+    AutoLocal, // local AABB of one node, oriented by its world transform
+};
+
+struct BoundsConfig {
+    BoundsMode mode = BoundsMode::AutoWorld;
+    glm::vec3 min{0.0f}; // custom, metres (center/size are converted to min/max when parsed)
+    glm::vec3 max{0.0f};
+    std::vector<std::string> nodes; // auto-world: node names (or decimal indices); empty = all
+    std::string node;               // auto-local: node name (or decimal index)
+    float padding = 0.0f;           // metres added on every side
+};
+
+constexpr float kDefaultDensity = 4.0f; // probes per metre
+constexpr float kMinAutoProbes = 8.0f;  // along the longest axis of an automatic grid
+
+struct VolumeConfig {
+    std::string name = "volume";
+    BoundsConfig bounds;
+    std::optional<glm::uvec3> resolution; // explicit powers of two; empty = "auto"
+    // auto: probes per metre. Unset = chosen from the volume: kDefaultDensity, raised so the
+    // longest axis gets at least kMinAutoProbes probes (small scenes still get a useful grid).
+    std::optional<float> density;
+    uint32_t maxResolution = 32; // auto: cap per axis (<= 256)
+    grid::PositionMode position = grid::PositionMode::Center;
+    Storage storage = Storage::Float16;
+    sh::Order shOrder = sh::Order::L2;
+    int32_t blendPriority = 0;
+    float fadeDistance = 0.0f; // metres
+};
+
+struct EnvironmentConfig {
+    enum class Type : uint8_t { Black, Constant, LatLong };
+    Type type = Type::Black;
+    glm::vec3 radiance{0.0f};   // constant, W/(sr m^2)
+    std::filesystem::path file; // lat-long image (relative paths resolve against the config)
+    float intensity = 1.0f;
+    float rotationDeg = 0.0f;
+};
+
+struct PathConfig {
+    uint32_t samples = 1024; // directions per probe
+    uint32_t maxBounces = 8; // path length cap (Russian roulette ends most paths earlier)
+};
+
+struct BakeConfig {
+    std::string method = "path";
+    uint64_t seed = 1;
+    PathConfig path;
+    EnvironmentConfig environment;
+    float backfaceThreshold = 0.25f; // probe invalid when more of its rays hit back faces
+    bool dilate = true;              // fill invalid probes from valid neighbours
+    uint64_t maxMemoryBytes = 4ull << 30;
+    std::vector<VolumeConfig> volumes; // empty = one auto-world volume with defaults
+};
+
+// Parses the JSON config. Unknown keys are errors (they are usually typos); every message
+// names `source` and the JSON path of the field, e.g. "bake.json: volumes[1].resolution[2]".
+Result<BakeConfig> parseBakeConfig(std::string_view json_text, std::string_view source,
+                                   const std::filesystem::path& base_dir = {});
+Result<BakeConfig> loadBakeConfig(const std::filesystem::path& path);
+
+// The config with every default filled in, as JSON (recorded in the file's metadata).
+std::string describeConfig(const BakeConfig& config);
+
+// Builds the scene's environment from the config (loads lat-long images).
+Result<Environment> makeEnvironment(const EnvironmentConfig& config);
+
+// Places every volume (bounds, frame, resolution) without baking. Fails naming the volume and
+// field for zero-size or inverted bounds, unknown nodes, an empty scene with automatic bounds,
+// bad resolutions, or a total size beyond config.maxMemoryBytes.
+Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeConfig& config);
+
+// Bytes a bake of these volumes holds at its peak (per-probe SH in float plus output texels).
+uint64_t estimateBakeMemory(const std::vector<VolumeDesc>& volumes);
+
+struct BakeProgress {
+    uint64_t probesDone = 0;
+    uint64_t probesTotal = 0;
+    double elapsedSeconds = 0.0;
+};
+
+struct BakeOptions {
+    uint32_t threads = 0; // 0 = all hardware threads
+    // Called from the calling thread about every 100 ms and once at the end.
+    std::function<void(const BakeProgress&)> progress;
+};
+
+struct BakeStats {
+    double seconds = 0.0;
+    uint64_t probes = 0;
+    uint64_t rays = 0;
+    double mraysPerSecond = 0.0;
+    uint64_t invalidProbes = 0;
+    uint64_t peakMemoryBytes = 0; // the process's peak resident set (getrusage)
+    uint32_t threads = 0;
+};
+
+struct BakeResult {
+    PvolFile file;
+    BakeStats stats;
+    std::vector<std::string> warnings;
+};
+
+Result<BakeResult> bake(const Scene& scene, const BakeConfig& config,
+                        const BakeOptions& options = {});
+
+} // namespace probekit::baker

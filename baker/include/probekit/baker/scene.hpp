@@ -1,0 +1,139 @@
+// probekit::baker::Scene — a glTF 2.0 scene flattened for light transport.
+//
+// Frame and units follow formats/CONVENTIONS.md: right-handed, +Y up, metres, linear radiometry.
+// All geometry is in world space (node transforms applied). Every surface is Lambertian and
+// two-sided: albedo = baseColorFactor x baseColorTexture(uv) (texture sRGB-decoded to linear),
+// emitted radiance = emissiveFactor x KHR_materials_emissive_strength x emissiveTexture(uv),
+// emitted from both sides.
+//
+// The scene owns all its data; it is immutable after loading and safe to read from any thread.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/mat4x4.hpp>
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
+
+#include "probekit/formats/grid.hpp"
+#include "probekit/formats/result.hpp"
+
+namespace probekit::baker {
+
+// A linear-light RGBA float image. Row 0 is the top of the image (glTF uv (0, 0) is the
+// top-left corner; lat-long row 0 is +Y).
+struct Image {
+    uint32_t width = 0;
+    uint32_t height = 0;
+    std::vector<glm::vec4> texels; // width * height, row-major
+
+    // Bilinear lookup with repeat wrapping at glTF uv (u right, v down).
+    glm::vec4 sampleBilinear(glm::vec2 uv) const;
+};
+
+struct Material {
+    std::string name;
+    glm::vec3 baseColor{1.0f}; // linear albedo factor, each channel in [0, 1]
+    int baseColorTexture = -1; // index into Scene::images (already linear), or -1
+    glm::vec3 emission{0.0f};  // emissiveFactor x emissive_strength, W/(sr m^2)
+    int emissiveTexture = -1;  // index into Scene::images (already linear), or -1
+    int baseColorTexCoord = 0; // which TEXCOORD_n set (only 0 is loaded; others warn)
+
+    bool isEmissive() const { return emission.x > 0 || emission.y > 0 || emission.z > 0; }
+};
+
+enum class LightType : uint8_t { Point, Spot, Directional };
+
+// KHR_lights_punctual, converted to world space and radiometric units.
+struct PunctualLight {
+    LightType type = LightType::Point;
+    glm::vec3 position{0.0f};      // world, metres (point, spot)
+    glm::vec3 direction{0, 0, -1}; // world unit vector the light travels along (spot, directional)
+    glm::vec3 intensity{0.0f};     // colour x intensity: W/sr (point, spot) or W/m^2 (directional)
+    float range = 0.0f;            // metres; 0 = infinite
+    float innerConeCos = 1.0f;     // spot: cos(innerConeAngle)
+    float outerConeCos = 0.70710678f; // spot: cos(outerConeAngle), default pi/4
+    std::string name;
+
+    // Irradiance a surface facing the light receives at `point` (W/m^2), without visibility:
+    // I / d^2 x glTF spot cone falloff x range window (KHR_lights_punctual's recommended
+    // smooth window clamp(1 - (d / range)^4, 0, 1)^2). For a directional light, intensity.
+    glm::vec3 irradianceAt(glm::vec3 point) const;
+};
+
+// Radiance arriving from infinitely far away in direction `dir` (pointing away from the scene).
+//
+// Lat-long mapping (documented here once): image column u in [0, 1) left to right and row v in
+// [0, 1) top to bottom map to the world direction (before rotation)
+//     phi = 2 pi u, theta = pi v,
+//     dir = (sin theta sin phi, cos theta, -sin theta cos phi)
+// so the top row is +Y, the bottom row -Y, the image centre (u = 0.5) looks along +Z, and the
+// left/right edge (u = 0) along -Z. `rotationDeg` then turns the map about +Y
+// (counter-clockwise seen from above, right-handed), and `intensity` scales it.
+struct Environment {
+    enum class Type : uint8_t { Constant, LatLong };
+    Type type = Type::Constant;
+    glm::vec3 constant{0.0f}; // W/(sr m^2), used when type == Constant
+    Image image;              // linear radiance, used when type == LatLong
+    float intensity = 1.0f;
+    float rotationDeg = 0.0f;
+    std::string source; // file name, for messages
+
+    glm::vec3 radiance(glm::vec3 dir) const;
+    bool isBlack() const;
+};
+
+// Loads an environment from a lat-long HDR/EXR (OpenImageIO). Errors name the file.
+Result<Environment> loadLatLongEnvironment(const std::filesystem::path& path, float intensity,
+                                           float rotation_deg);
+
+struct SceneNode {
+    std::string name;
+    int gltfIndex = -1;
+    glm::mat4 world{1.0f};  // local -> world
+    grid::Aabb localBounds; // of this node's own mesh, in its local frame (empty: no mesh)
+    grid::Aabb worldBounds; // of this node's own mesh, world space
+    bool hasMesh = false;
+};
+
+struct Scene {
+    // Triangles, world space.
+    std::vector<glm::vec3> positions;
+    std::vector<glm::vec2> uvs;             // one per position (zero when the mesh has none)
+    std::vector<glm::uvec3> triangles;      // indices into positions
+    std::vector<uint32_t> triangleMaterial; // per triangle, index into materials
+    std::vector<int32_t> triangleNode;      // per triangle, index into nodes
+
+    std::vector<Material> materials; // always holds at least one (the glTF default)
+    std::vector<Image> images;       // linear RGBA
+    std::vector<PunctualLight> lights;
+    Environment environment;
+    std::vector<SceneNode> nodes; // every node of the chosen scene, in glTF order
+
+    grid::Aabb bounds;                 // world bounds of all triangles (empty scene: zero)
+    uint64_t sourceHash = 0;           // xxHash64 of the glTF/glb file bytes
+    std::vector<std::string> warnings; // non-fatal problems, each naming file and field
+
+    bool hasGeometry() const { return !triangles.empty(); }
+    // Linear albedo / emission of triangle `tri` at barycentrics (b1, b2) (Embree's u, v).
+    glm::vec3 albedoAt(uint32_t tri, glm::vec2 bary) const;
+    glm::vec3 emissionAt(uint32_t tri, glm::vec2 bary) const;
+};
+
+struct LoadOptions {
+    std::optional<int> sceneIndex; // glTF scene to load; default: the file's default scene, or 0
+};
+
+// Loads a .gltf or .glb (embedded or external buffers and images). Triangle primitives of
+// every index type and non-indexed ones are loaded; points and lines are skipped with a
+// warning; triangles with NaN/inf vertices are skipped with a warning. Fails with a message
+// naming the file and field on a missing or malformed file, an unsupported required
+// extension, an out-of-range accessor or index, or a bad scene index.
+Result<Scene> loadGltf(const std::filesystem::path& path, const LoadOptions& options = {});
+
+} // namespace probekit::baker

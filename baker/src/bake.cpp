@@ -1,0 +1,389 @@
+// The bake: volume placement, the probe loop on a thread pool, validity and dilation.
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include <sys/resource.h>
+
+#include <glm/gtc/matrix_access.hpp>
+#include <glm/gtc/quaternion.hpp>
+
+#include "path_integrator.hpp"
+#include "probekit/baker/bake.hpp"
+#include "ray_tracer.hpp"
+
+namespace probekit::baker {
+namespace {
+
+std::string volumeLabel(size_t index, const VolumeConfig& v) {
+    return "volumes[" + std::to_string(index) + "] ('" + v.name + "')";
+}
+
+// Finds a node by name, or by its glTF index written in decimal.
+const SceneNode* findNode(const Scene& scene, const std::string& key) {
+    for (const SceneNode& n : scene.nodes) {
+        if (n.name == key) {
+            return &n;
+        }
+    }
+    if (!key.empty() && std::all_of(key.begin(), key.end(), ::isdigit)) {
+        const int index = std::stoi(key);
+        for (const SceneNode& n : scene.nodes) {
+            if (n.gltfIndex == index) {
+                return &n;
+            }
+        }
+    }
+    return nullptr;
+}
+
+grid::Aabb unionOf(const grid::Aabb& a, const grid::Aabb& b) {
+    return grid::Aabb{glm::min(a.min, b.min), glm::max(a.max, b.max)};
+}
+
+uint32_t roundToPowerOfTwo(float probes) {
+    // Nearest power of two in the log sense: 2^round(log2(n)), at least 1.
+    if (!(probes > 1.0f)) {
+        return 1;
+    }
+    return 1u << uint32_t(std::lround(std::log2(probes)));
+}
+
+// Splits a node's world matrix into a rigid frame and a per-axis scale.
+void decompose(const glm::mat4& m, grid::RigidFrame& frame, glm::vec3& scale) {
+    glm::mat3 r(m);
+    for (int c = 0; c < 3; ++c) {
+        scale[c] = glm::length(r[c]);
+        r[c] = scale[c] > 0.0f ? r[c] / scale[c] : glm::vec3(0.0f);
+    }
+    if (glm::determinant(r) < 0.0f) {
+        // A mirrored node: fold the reflection into the x scale so the frame stays rotation.
+        scale.x = -scale.x;
+        r[0] = -r[0];
+    }
+    frame.rotation = glm::normalize(glm::quat_cast(r));
+    frame.translation = glm::vec3(m[3]);
+}
+
+// 3x3x3 neighbourhood average of valid probes, repeated until every reachable probe is
+// filled. Newly filled probes count as sources only in the next pass, so the result does not
+// depend on visiting order.
+uint64_t dilate(const grid::GridLayout& g, std::vector<sh::ShRgb>& probes,
+                std::vector<uint8_t> filled) {
+    const glm::ivec3 res(g.resolution());
+    uint64_t unreachable = 0;
+    for (;;) {
+        std::vector<std::pair<size_t, sh::ShRgb>> updates;
+        bool any_missing = false;
+        for (size_t i = 0; i < probes.size(); ++i) {
+            if (filled[i]) {
+                continue;
+            }
+            any_missing = true;
+            const glm::ivec3 c(g.probeCoords(i));
+            sh::ShRgb sum;
+            int count = 0;
+            for (int dz = -1; dz <= 1; ++dz) {
+                for (int dy = -1; dy <= 1; ++dy) {
+                    for (int dx = -1; dx <= 1; ++dx) {
+                        const glm::ivec3 n = c + glm::ivec3(dx, dy, dz);
+                        if (glm::any(glm::lessThan(n, glm::ivec3(0))) ||
+                            glm::any(glm::greaterThanEqual(n, res))) {
+                            continue;
+                        }
+                        const size_t j = g.linearIndex(glm::uvec3(n));
+                        if (filled[j]) {
+                            sum += probes[j];
+                            ++count;
+                        }
+                    }
+                }
+            }
+            if (count > 0) {
+                sum *= 1.0f / float(count);
+                updates.emplace_back(i, sum);
+            }
+        }
+        if (!any_missing) {
+            break;
+        }
+        if (updates.empty()) {
+            unreachable = uint64_t(std::count(filled.begin(), filled.end(), 0));
+            break;
+        }
+        for (auto& [i, sh_value] : updates) {
+            probes[i] = sh_value;
+            filled[i] = 1;
+        }
+    }
+    return unreachable;
+}
+
+uint64_t peakResidentBytes() {
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    return uint64_t(usage.ru_maxrss) * 1024; // Linux reports kilobytes
+}
+
+} // namespace
+
+Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeConfig& config) {
+    std::vector<VolumeConfig> configs = config.volumes;
+    if (configs.empty()) {
+        configs.push_back(VolumeConfig{});
+    }
+    std::vector<VolumeDesc> out;
+    for (size_t index = 0; index < configs.size(); ++index) {
+        const VolumeConfig& v = configs[index];
+        const std::string label = volumeLabel(index, v);
+        grid::Aabb box;
+        grid::RigidFrame frame;
+        switch (v.bounds.mode) {
+        case BoundsMode::Custom:
+            box = grid::Aabb{v.bounds.min, v.bounds.max};
+            break;
+        case BoundsMode::AutoWorld:
+            if (v.bounds.nodes.empty()) {
+                if (!scene.hasGeometry()) {
+                    return makeError(ErrorCode::InvalidArgument,
+                                     label + ".bounds: the scene has no geometry, so automatic "
+                                             "bounds are empty; give custom bounds");
+                }
+                box = scene.bounds;
+            } else {
+                bool first = true;
+                for (const std::string& key : v.bounds.nodes) {
+                    const SceneNode* node = findNode(scene, key);
+                    if (!node) {
+                        return makeError(ErrorCode::InvalidArgument,
+                                         label + ".bounds.nodes: no node named '" + key + "'");
+                    }
+                    if (!node->hasMesh) {
+                        continue;
+                    }
+                    box = first ? node->worldBounds : unionOf(box, node->worldBounds);
+                    first = false;
+                }
+                if (first) {
+                    return makeError(ErrorCode::InvalidArgument,
+                                     label + ".bounds.nodes: none of the listed nodes has a mesh");
+                }
+            }
+            break;
+        case BoundsMode::AutoLocal: {
+            const SceneNode* node = findNode(scene, v.bounds.node);
+            if (!node) {
+                return makeError(ErrorCode::InvalidArgument,
+                                 label + ".bounds.node: no node named '" + v.bounds.node + "'");
+            }
+            if (!node->hasMesh) {
+                return makeError(ErrorCode::InvalidArgument,
+                                 label + ".bounds.node: node '" + v.bounds.node +
+                                     "' has no mesh to take bounds from");
+            }
+            glm::vec3 scale;
+            decompose(node->world, frame, scale);
+            // The frame is rigid, so the node's scale is folded into the local box.
+            const glm::vec3 a = node->localBounds.min * scale;
+            const glm::vec3 b = node->localBounds.max * scale;
+            box = grid::Aabb{glm::min(a, b), glm::max(a, b)};
+            break;
+        }
+        }
+        box.min -= glm::vec3(v.bounds.padding);
+        box.max += glm::vec3(v.bounds.padding);
+        const glm::vec3 extent = box.size();
+        const float longest = std::max({extent.x, extent.y, extent.z});
+        const float density =
+            v.density ? *v.density
+                      : std::max(kDefaultDensity, longest > 0.0f ? kMinAutoProbes / longest : 0.0f);
+        // A flat scene (a single floor quad) has zero thickness; give it one probe spacing.
+        if (v.bounds.mode != BoundsMode::Custom) {
+            for (int a = 0; a < 3; ++a) {
+                if (box.max[a] - box.min[a] <= 0.0f) {
+                    box.min[a] -= 0.5f / density;
+                    box.max[a] += 0.5f / density;
+                }
+            }
+        }
+        glm::uvec3 res;
+        if (v.resolution) {
+            res = *v.resolution;
+        } else {
+            const glm::vec3 size = box.size();
+            for (int a = 0; a < 3; ++a) {
+                res[a] = std::min(roundToPowerOfTwo(size[a] * density), v.maxResolution);
+                if (v.position == grid::PositionMode::Corner) {
+                    res[a] = std::max(res[a], 2u);
+                }
+            }
+        }
+        Result<grid::GridLayout> layout = grid::GridLayout::make(box, res, v.position, frame);
+        if (!layout) {
+            return makeError(layout.error().code, label + ": " + layout.error().message);
+        }
+        VolumeDesc desc;
+        desc.name = v.name;
+        desc.grid = layout.value();
+        desc.shOrder = v.shOrder;
+        desc.storage = v.storage;
+        desc.blendPriority = v.blendPriority;
+        desc.fadeDistance = v.fadeDistance;
+        out.push_back(std::move(desc));
+    }
+    const uint64_t bytes = estimateBakeMemory(out);
+    if (bytes > config.maxMemoryBytes) {
+        return makeError(
+            ErrorCode::OutOfRange,
+            "volumes: the grids need " + std::to_string(bytes >> 20) +
+                " MiB, more than max_memory_mb = " + std::to_string(config.maxMemoryBytes >> 20) +
+                " (lower the resolution or raise --max-memory)");
+    }
+    return out;
+}
+
+uint64_t estimateBakeMemory(const std::vector<VolumeDesc>& volumes) {
+    uint64_t total = 0;
+    for (const VolumeDesc& d : volumes) {
+        const uint64_t probes = d.grid.probeCount();
+        const uint64_t texels = uint64_t(planeCount(d.shOrder)) * 4 * 4; // float staging
+        total += probes *
+                 (sizeof(sh::ShRgb) + 1 + texels + texels / 2 * (d.storage == Storage::Float16));
+    }
+    return total;
+}
+
+Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const BakeOptions& options) {
+    const auto start = std::chrono::steady_clock::now();
+    if (config.method != "path") {
+        return makeError(ErrorCode::InvalidArgument,
+                         "method: \"" + config.method + "\" is not available in this build");
+    }
+    Result<std::vector<VolumeDesc>> descs = resolveVolumes(scene, config);
+    if (!descs) {
+        return descs.error();
+    }
+    Result<std::unique_ptr<RayTracer>> tracer = RayTracer::create(scene);
+    if (!tracer) {
+        return tracer.error();
+    }
+
+    BakeResult result;
+    result.stats.threads =
+        options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
+    uint64_t total_probes = 0;
+    for (const VolumeDesc& d : descs.value()) {
+        total_probes += d.grid.probeCount();
+    }
+    std::atomic<uint64_t> probes_done{0};
+    std::atomic<uint64_t> rays{0};
+    auto report = [&] {
+        if (options.progress) {
+            options.progress(BakeProgress{
+                probes_done.load(), total_probes,
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()});
+        }
+    };
+
+    for (uint32_t vi = 0; vi < descs.value().size(); ++vi) {
+        const VolumeDesc& desc = descs.value()[vi];
+        PathSettings settings;
+        settings.samples = config.path.samples;
+        settings.maxBounces = config.path.maxBounces;
+        const PathIntegrator integrator(scene, *tracer.value(), settings, desc.shOrder);
+
+        const size_t count = desc.grid.probeCount();
+        std::vector<sh::ShRgb> probes(count);
+        std::vector<uint8_t> validity(count, kProbeValid);
+        std::atomic<size_t> next{0};
+        // Small chunks keep both threads busy to the end; each probe's result depends only on
+        // (seed, volume, probe), so scheduling never changes the output.
+        constexpr size_t kChunk = 4;
+        auto worker = [&] {
+            uint64_t local_rays = 0;
+            for (;;) {
+                const size_t begin = next.fetch_add(kChunk);
+                if (begin >= count) {
+                    break;
+                }
+                const size_t end = std::min(count, begin + kChunk);
+                for (size_t i = begin; i < end; ++i) {
+                    const glm::vec3 p = desc.grid.probeWorld(desc.grid.probeCoords(i));
+                    ProbeSample s = integrator.bakeProbe(p, config.seed, vi, i);
+                    probes[i] = s.sh;
+                    validity[i] =
+                        s.backFaceFraction > config.backfaceThreshold ? kProbeInvalid : kProbeValid;
+                    local_rays += s.rays;
+                }
+                probes_done.fetch_add(end - begin);
+            }
+            rays.fetch_add(local_rays);
+        };
+        const uint64_t volume_end = probes_done.load() + count;
+        std::vector<std::thread> pool;
+        const uint32_t pool_size =
+            options.progress ? result.stats.threads : result.stats.threads - 1;
+        for (uint32_t t = 0; t < pool_size; ++t) {
+            pool.emplace_back(worker);
+        }
+        if (options.progress) {
+            // The calling thread only reports, so callbacks never run on a pool thread.
+            while (probes_done.load() < volume_end) {
+                report();
+                std::this_thread::sleep_for(std::chrono::milliseconds(100));
+            }
+        } else {
+            worker();
+        }
+        for (std::thread& t : pool) {
+            t.join();
+        }
+
+        const uint64_t invalid = uint64_t(std::count(validity.begin(), validity.end(), 0));
+        result.stats.invalidProbes += invalid;
+        if (config.dilate && invalid > 0) {
+            const uint64_t unreachable = dilate(desc.grid, probes, validity);
+            if (unreachable > 0) {
+                result.warnings.push_back("volume '" + desc.name +
+                                          "': " + std::to_string(unreachable) +
+                                          " invalid probes have no valid probe to dilate from");
+            }
+        }
+        Result<Volume> volume = makeVolume(desc, probes, validity);
+        if (!volume) {
+            return volume.error();
+        }
+        result.file.volumes.push_back(std::move(volume).value());
+    }
+    report();
+
+    result.stats.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    result.stats.probes = total_probes;
+    result.stats.rays = rays.load();
+    result.stats.mraysPerSecond =
+        result.stats.seconds > 0 ? double(result.stats.rays) / result.stats.seconds * 1e-6 : 0;
+    result.stats.peakMemoryBytes = peakResidentBytes();
+
+    BakeMetadata& m = result.file.metadata;
+    m.toolVersion = "probekit " PROBEKIT_VERSION_STRING;
+    m.method = config.method;
+    BakeConfig resolved = config;
+    if (resolved.volumes.empty()) {
+        resolved.volumes.push_back(VolumeConfig{});
+    }
+    // Record what was actually baked: the resolved resolution and bounds of every volume.
+    for (size_t i = 0; i < resolved.volumes.size(); ++i) {
+        const VolumeDesc& d = descs.value()[i];
+        resolved.volumes[i].resolution = d.grid.resolution();
+    }
+    m.parametersJson = describeConfig(resolved);
+    m.seed = config.seed;
+    m.sceneHash = scene.sourceHash;
+    m.bakeSeconds = result.stats.seconds;
+    return result;
+}
+
+} // namespace probekit::baker

@@ -1,0 +1,69 @@
+// probekit::runtime CPU reference sampler — the specification the GPU path must match.
+//
+// shaders/probe_volume.glsl's pk_irradiance mirrors sampleIrradiance term for term; the GPU
+// tests compare against this code. It needs no Vulkan and no baker.
+//
+// Sampling one volume at world position p:
+//   1. g = volume.grid.worldToGrid(p) (continuous grid coordinates, probe i at i).
+//   2. Clamp addressing: g = clamp(g, 0, res - 1) per axis. This is what a 3D texture with
+//      linear filtering and clamp-to-edge addressing does at texture coordinate (g + 0.5) / res.
+//   3. Trilinear interpolation of the stored RGBA texels of every plane (half texels are
+//      decoded to float first) between probes floor(g) and floor(g) + 1 (an axis with one probe
+//      uses it alone), weights fract(g).
+//   4. Unpack to SH (volume.hpp's packing) and evaluate sh::irradiance with the world normal
+//      (coefficients are stored in the world frame, whatever the volume's own frame).
+//
+// Blending overlapping volumes at p:
+//   * A volume's weight w(p) is 1 deeper than fadeDistance inside its box, falls linearly to 0
+//     at the box border (distance to the nearest face of the local box / fadeDistance, clamped
+//     to [0, 1]; fadeDistance 0 means a hard border), and is 0 outside the box.
+//   * Volumes are visited by descending blendPriority (ties: file order). Each takes
+//     a = w * remaining of what is left (remaining starts at 1), so a higher-priority volume
+//     fully covering p hides the others and its fade band lets the next one show through.
+//   * E(p) = sum a_v E_v(p) / sum a_v: at the outer border of the last volume the result does
+//     not fade to black.
+//   * If no volume covers p (sum a_v = 0), the volume whose box is nearest to p is sampled
+//     with clamp addressing (ties: highest priority, then file order).
+#pragma once
+
+#include <filesystem>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "probekit/formats/pvol.hpp"
+#include "probekit/formats/result.hpp"
+#include "probekit/formats/sh.hpp"
+#include "probekit/formats/volume.hpp"
+
+namespace probekit::runtime {
+
+// The radiance SH of one volume at world position p (steps 1-4 above, before the normal).
+sh::ShRgb sampleVolumeSh(const Volume& volume, glm::vec3 world_position);
+
+// The blend weight w(p) of one volume (see above), in [0, 1].
+float volumeWeight(const Volume& volume, glm::vec3 world_position);
+
+// Distance from p to the volume's box in metres (0 inside).
+float distanceToVolume(const Volume& volume, glm::vec3 world_position);
+
+class VolumeSet {
+public:
+    VolumeSet() = default;
+    explicit VolumeSet(std::vector<Volume> volumes);
+
+    static Result<VolumeSet> load(const std::filesystem::path& path);
+
+    const std::vector<Volume>& volumes() const { return m_volumes; }
+    bool empty() const { return m_volumes.empty(); }
+
+    // Irradiance E in W/m^2 (not divided by pi) for a receiver at world position p with unit
+    // world normal n, blended over all volumes as described above. Precondition: !empty().
+    glm::vec3 irradiance(glm::vec3 world_position, glm::vec3 normal) const;
+
+private:
+    std::vector<Volume> m_volumes;
+    std::vector<size_t> m_byPriority; // indices into m_volumes, descending priority
+};
+
+} // namespace probekit::runtime

@@ -1,0 +1,309 @@
+// Bake-level tests: config parsing, volume placement, the Cornell box against an independent
+// path-traced reference, determinism across thread counts, validity and dilation.
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "probekit/baker/bake.hpp"
+#include "probekit/baker/generators.hpp"
+#include "probekit/runtime/sampler.hpp"
+
+using namespace probekit;
+using namespace probekit::baker;
+
+namespace {
+
+const std::filesystem::path kShared = PROBEKIT_SHARED_DIR;
+
+// The issue's bound for the path method on the Cornell box: band-limited relative RMSE <= 2%.
+// Budget: rel RMSE^2 = bias^2 + our noise^2 + reference noise^2. Reference noise
+// sqrt(sum stderr_L2^2 / sum E_L2^2) is ~0.05% (shared scenes README). Our noise was measured
+// from seed pairs at 8192 samples: 3.5% (0.33% with 0 bounces, 1.0% with 1: the deep, Russian-
+// rouletted bounces carry most of it), so at N samples it is 3.5% x sqrt(8192 / N): 0.88% at
+// 131072. The test measures it again from two seeds; kCornellNoiseBound (1.4x the expected
+// value, room for the estimate's own scatter) catches a variance regression, and the 2% bound
+// then leaves ~1.8% for bias, which the reference says must be ~0.
+constexpr double kCornellRelRmse = 0.02;
+constexpr uint32_t kCornellSamples = 131072;
+constexpr double kCornellNoiseBound = 0.0125;
+
+std::filesystem::path tempDir(const std::string& name) {
+    auto dir = std::filesystem::temp_directory_path() / ("probekit_test_" + name);
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
+Scene loadOrFail(const std::filesystem::path& path) {
+    Result<Scene> s = loadGltf(path);
+    EXPECT_TRUE(s.ok()) << (s.ok() ? "" : s.error().message);
+    return s.ok() ? std::move(s).value() : Scene{};
+}
+
+// One 1x1x1 centre-mode volume centred at each point: the probe sits exactly at the point.
+BakeConfig pointProbes(const std::vector<glm::vec3>& points, uint32_t samples) {
+    BakeConfig c;
+    c.path.samples = samples;
+    c.path.maxBounces = 64;
+    for (size_t i = 0; i < points.size(); ++i) {
+        VolumeConfig v;
+        // Appending (not operator+) avoids a GCC 12 -Wrestrict false positive.
+        v.name = "p";
+        v.name += std::to_string(i);
+        v.bounds.mode = BoundsMode::Custom;
+        v.bounds.min = points[i] - glm::vec3(0.05f);
+        v.bounds.max = points[i] + glm::vec3(0.05f);
+        v.resolution = glm::uvec3(1);
+        v.storage = Storage::Float32;
+        c.volumes.push_back(v);
+    }
+    return c;
+}
+
+} // namespace
+
+TEST(BakeConfig, ParsesTheDocumentedExample) {
+    const char* text = R"({
+      "method": "path", "seed": 1,
+      "path": {"samples": 1024, "max_bounces": 8},
+      "environment": {"type": "constant", "radiance": [0.3, 0.4, 0.6]},
+      "volumes": [
+        {"name": "hall",
+         "bounds": {"mode": "custom", "center": [0, 1, 0], "size": [4, 2, 4]},
+         "resolution": [16, 8, 16], "position": "center", "format": "half", "sh_order": 2}
+      ]})";
+    Result<BakeConfig> c = parseBakeConfig(text, "bake.json");
+    ASSERT_TRUE(c.ok()) << c.error().message;
+    EXPECT_EQ(c.value().path.samples, 1024u);
+    EXPECT_EQ(c.value().environment.type, EnvironmentConfig::Type::Constant);
+    ASSERT_EQ(c.value().volumes.size(), 1u);
+    const VolumeConfig& v = c.value().volumes[0];
+    EXPECT_EQ(v.name, "hall");
+    EXPECT_EQ(v.bounds.min, glm::vec3(-2, 0, -2));
+    EXPECT_EQ(v.bounds.max, glm::vec3(2, 2, 2));
+    EXPECT_EQ(*v.resolution, glm::uvec3(16, 8, 16));
+    EXPECT_EQ(v.storage, Storage::Float16);
+}
+
+TEST(BakeConfig, ErrorsNameFileAndField) {
+    struct Case {
+        const char* json;
+        const char* expect;
+    };
+    const Case cases[] = {
+        {R"({"volumes": [{"resolution": [16, 12, 16]}]})", "bake.json: volumes[0].resolution[1]"},
+        {R"({"volumes": [{"bounds": {"mode": "custom", "min": [0,0,0], "max": [1,0,1]}}]})",
+         "volumes[0].bounds.max[1]"},
+        {R"({"volumes": [{"bounds": {"mode": "custom", "center": [0,0,0], "size": [1,-1,1]}}]})",
+         "volumes[0].bounds.size[1]"},
+        {R"({"pathh": {}})", "bake.json: pathh: unknown field"},
+        {R"({"path": {"samples": 0}})", "path.samples"},
+        {R"({"volumes": [{"format": "double"}]})", "volumes[0].format"},
+        {R"({"environment": {"type": "latlong"}})", "environment.file"},
+        {R"({"method": )", "bake.json: not valid JSON"},
+    };
+    for (const Case& c : cases) {
+        Result<BakeConfig> r = parseBakeConfig(c.json, "bake.json");
+        ASSERT_FALSE(r.ok()) << c.json;
+        EXPECT_NE(r.error().message.find(c.expect), std::string::npos)
+            << "message: " << r.error().message << "\nexpected to contain: " << c.expect;
+    }
+}
+
+TEST(BakeVolumes, AutoResolutionRoundsToPowersOfTwoAndCaps) {
+    Scene scene; // placement needs only nodes and bounds
+    scene.bounds = {glm::vec3(0), glm::vec3(2.0f, 0.9f, 40.0f)};
+    scene.triangles.push_back(glm::uvec3(0, 1, 2));
+    BakeConfig c;
+    VolumeConfig v;
+    v.density = 4.0f; // 8, 3.6, 160 probes -> 8, 4, capped 32
+    c.volumes = {v};
+    Result<std::vector<VolumeDesc>> d = resolveVolumes(scene, c);
+    ASSERT_TRUE(d.ok()) << d.error().message;
+    EXPECT_EQ(d.value()[0].grid.resolution(), glm::uvec3(8, 4, 32));
+}
+
+TEST(BakeVolumes, DefaultDensityGivesSmallScenesAUsefulGrid) {
+    Scene scene;
+    scene.triangles.push_back(glm::uvec3(0, 1, 2));
+    // The Cornell box (0.556 m): kMinAutoProbes / 0.556 = 14.4 probes/m -> 8 per axis.
+    scene.bounds = {glm::vec3(0), glm::vec3(0.556f, 0.5488f, 0.5592f)};
+    Result<std::vector<VolumeDesc>> small = resolveVolumes(scene, BakeConfig{});
+    ASSERT_TRUE(small.ok());
+    EXPECT_EQ(small.value()[0].grid.resolution(), glm::uvec3(8, 8, 8));
+    // A 10 m x 3 m x 6 m hall keeps kDefaultDensity (4/m): 40 -> 32, 12 -> 16, 24 -> 32.
+    scene.bounds = {glm::vec3(0), glm::vec3(10.0f, 3.0f, 6.0f)};
+    Result<std::vector<VolumeDesc>> hall = resolveVolumes(scene, BakeConfig{});
+    ASSERT_TRUE(hall.ok());
+    EXPECT_EQ(hall.value()[0].grid.resolution(), glm::uvec3(32, 16, 32));
+}
+
+TEST(BakeVolumes, MemoryBudgetIsEnforced) {
+    Scene scene;
+    BakeConfig c;
+    VolumeConfig v;
+    v.bounds.mode = BoundsMode::Custom;
+    v.bounds.min = glm::vec3(0);
+    v.bounds.max = glm::vec3(1);
+    v.resolution = glm::uvec3(256);
+    c.volumes = {v};
+    c.maxMemoryBytes = 64ull << 20;
+    Result<std::vector<VolumeDesc>> d = resolveVolumes(scene, c);
+    ASSERT_FALSE(d.ok());
+    EXPECT_NE(d.error().message.find("max_memory_mb = 64"), std::string::npos) << d.error().message;
+}
+
+TEST(BakeVolumes, EmptySceneNeedsCustomBounds) {
+    Scene scene;
+    BakeConfig c;
+    Result<std::vector<VolumeDesc>> d = resolveVolumes(scene, c);
+    ASSERT_FALSE(d.ok());
+    EXPECT_NE(d.error().message.find("no geometry"), std::string::npos) << d.error().message;
+}
+
+// The shared Cornell box against the Cycles reference (../shared/scenes/README.md): a probe at
+// each reference point, E_L2 compared at the 64 reference normals.
+TEST(BakeCornell, MatchesCyclesReferenceWithinTwoPercent) {
+    const std::filesystem::path dir = kShared / "scenes" / "cornell-box";
+    std::ifstream in(dir / "reference.json");
+    ASSERT_TRUE(in) << "missing " << (dir / "reference.json") << " (shared/ must sit beside the "
+                    << "checkout)";
+    const nlohmann::json ref = nlohmann::json::parse(in);
+    std::vector<glm::vec3> points;
+    for (const auto& p : ref["points"]) {
+        points.emplace_back(p[0].get<float>(), p[1].get<float>(), p[2].get<float>());
+    }
+    Scene scene = loadOrFail(dir / "cornell_from_obj.gltf");
+    ASSERT_TRUE(scene.hasGeometry());
+
+    auto relRmse = [&](const BakeResult& a) {
+        double num = 0, den = 0;
+        for (size_t p = 0; p < points.size(); ++p) {
+            const runtime::VolumeSet set({a.file.volumes[p]});
+            for (size_t k = 0; k < ref["normals"].size(); ++k) {
+                const auto& n = ref["normals"][k];
+                const glm::vec3 normal(n[0].get<float>(), n[1].get<float>(), n[2].get<float>());
+                const glm::vec3 e = set.irradiance(points[p], normal);
+                for (int c = 0; c < 3; ++c) {
+                    const double r = ref["E_L2"][p][k][c].get<double>();
+                    num += (e[c] - r) * (e[c] - r);
+                    den += r * r;
+                }
+            }
+        }
+        return std::sqrt(num / den);
+    };
+    BakeConfig config = pointProbes(points, kCornellSamples);
+    Result<BakeResult> a = bake(scene, config);
+    ASSERT_TRUE(a.ok()) << a.error().message;
+    config.seed = 2;
+    Result<BakeResult> b = bake(scene, config);
+    ASSERT_TRUE(b.ok()) << b.error().message;
+
+    // One bake's noise from the difference of two independent bakes.
+    double diff2 = 0, ref2 = 0;
+    for (size_t p = 0; p < points.size(); ++p) {
+        const runtime::VolumeSet sa({a.value().file.volumes[p]});
+        const runtime::VolumeSet sb({b.value().file.volumes[p]});
+        for (size_t k = 0; k < ref["normals"].size(); ++k) {
+            const auto& n = ref["normals"][k];
+            const glm::vec3 normal(n[0].get<float>(), n[1].get<float>(), n[2].get<float>());
+            const glm::vec3 d = sa.irradiance(points[p], normal) - sb.irradiance(points[p], normal);
+            for (int c = 0; c < 3; ++c) {
+                diff2 += d[c] * d[c];
+                const double r = ref["E_L2"][p][k][c].get<double>();
+                ref2 += r * r;
+            }
+        }
+    }
+    const double noise = std::sqrt(diff2 / ref2 / 2.0);
+    const double err_a = relRmse(a.value());
+    const double err_b = relRmse(b.value());
+    std::printf("[cornell] rel RMSE vs E_L2: seed 1 %.4f, seed 2 %.4f; one-bake noise %.4f; "
+                "%.2f s, %.2f Mrays/s\n",
+                err_a, err_b, noise, a.value().stats.seconds, a.value().stats.mraysPerSecond);
+    EXPECT_LT(noise, kCornellNoiseBound);
+    EXPECT_LT(err_a, kCornellRelRmse);
+    EXPECT_LT(err_b, kCornellRelRmse);
+}
+
+TEST(BakeDeterminism, BitIdenticalForOneAndTwoThreads) {
+    const auto dir = tempDir("determinism");
+    ASSERT_TRUE(writeGeneratedScene("cornell", dir / "cornell.gltf").ok());
+    Scene scene = loadOrFail(dir / "cornell.gltf");
+    BakeConfig c;
+    c.path.samples = 64;
+    VolumeConfig v;
+    v.resolution = glm::uvec3(4, 4, 2);
+    c.volumes = {v};
+    BakeOptions one;
+    one.threads = 1;
+    BakeOptions two;
+    two.threads = 2;
+    Result<BakeResult> a = bake(scene, c, one);
+    Result<BakeResult> b = bake(scene, c, two);
+    ASSERT_TRUE(a.ok() && b.ok());
+    // Timing differs run to run; everything else must not.
+    a.value().file.metadata.bakeSeconds = b.value().file.metadata.bakeSeconds = 0;
+    EXPECT_EQ(encodePvol(a.value().file), encodePvol(b.value().file));
+    c.seed = 7;
+    Result<BakeResult> other = bake(scene, c, one);
+    ASSERT_TRUE(other.ok());
+    other.value().file.metadata.bakeSeconds = 0;
+    other.value().file.metadata.seed = 1;
+    EXPECT_NE(other.value().file.volumes[0].texelsF16, a.value().file.volumes[0].texelsF16);
+}
+
+// A probe inside the Cornell box's tall block sees only back faces: it must be marked invalid
+// and filled from its valid neighbours, never left black.
+TEST(BakeValidity, ProbeInsideGeometryIsInvalidAndDilated) {
+    const auto dir = tempDir("validity");
+    ASSERT_TRUE(writeGeneratedScene("cornell", dir / "cornell.gltf").ok());
+    Scene scene = loadOrFail(dir / "cornell.gltf");
+    BakeConfig c;
+    c.path.samples = 256;
+    VolumeConfig v;
+    v.bounds.mode = BoundsMode::Custom;
+    // A 4x1x1 row along x at y = 0.2 m through the tall block (x 0.265..0.472 at z ~0.35).
+    v.bounds.min = glm::vec3(0.10f, 0.15f, 0.30f);
+    v.bounds.max = glm::vec3(0.50f, 0.25f, 0.40f);
+    v.resolution = glm::uvec3(4, 1, 1); // probes at x = 0.15, 0.25, 0.35, 0.45
+    v.storage = Storage::Float32;
+    c.volumes = {v};
+    Result<BakeResult> r = bake(scene, c);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    const Volume& vol = r.value().file.volumes[0];
+    EXPECT_EQ(r.value().stats.invalidProbes, 2u);
+    EXPECT_EQ(vol.validity, (std::vector<uint8_t>{1, 1, 0, 0}));
+    // Dilation copies the nearest valid neighbour (x = 0.25) into x = 0.35, then into 0.45.
+    EXPECT_EQ(vol.probe(2), vol.probe(1));
+    EXPECT_EQ(vol.probe(3), vol.probe(1));
+    EXPECT_GT(vol.probe(1).rgb[0].x, 0.0f);
+
+    c.dilate = false;
+    Result<BakeResult> raw = bake(scene, c);
+    ASSERT_TRUE(raw.ok());
+    EXPECT_NE(raw.value().file.volumes[0].probe(2), vol.probe(1));
+}
+
+TEST(BakeGenerators, CornellLoadsWithPublishedDimensions) {
+    const auto dir = tempDir("generators");
+    ASSERT_TRUE(writeGeneratedScene("cornell", dir / "cornell.gltf").ok());
+    Scene scene = loadOrFail(dir / "cornell.gltf");
+    // 5 walls + 2 blocks x 5 faces + 1 light = 16 quads = 32 triangles.
+    EXPECT_EQ(scene.triangles.size(), 32u);
+    // Published box: 556.0 x 548.8 x 559.2 mm.
+    constexpr float kMillimetre = 1e-3f;
+    EXPECT_NEAR(scene.bounds.max.x, 0.556f, kMillimetre);
+    EXPECT_NEAR(scene.bounds.max.y, 0.5488f, kMillimetre);
+    EXPECT_NEAR(scene.bounds.max.z, 0.5592f, kMillimetre);
+    int emissive = 0;
+    for (const Material& m : scene.materials) {
+        emissive += m.isEmissive();
+    }
+    EXPECT_EQ(emissive, 1);
+    EXPECT_FALSE(writeGeneratedScene("nope", dir / "x.gltf").ok());
+}

@@ -1,0 +1,319 @@
+// `probekit bake`, `probekit scene` and `probekit bench-rays`.
+#include <cstdio>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+#include "commands.hpp"
+#include "probekit/baker/bake.hpp"
+#include "probekit/baker/bench_rays.hpp"
+#include "probekit/baker/generators.hpp"
+
+namespace probekit::cli {
+namespace {
+
+struct BakeOptionsCli {
+    std::string scene;
+    std::string output;
+    std::string config;
+    std::optional<std::string> method;
+    std::optional<uint32_t> samples;
+    std::optional<uint32_t> bounces;
+    std::optional<uint64_t> seed;
+    uint32_t threads = 0;
+    std::vector<uint32_t> resolution;
+    std::optional<float> density;
+    std::optional<std::string> position;
+    std::optional<std::string> format;
+    std::optional<int> shOrder;
+    std::optional<std::string> env;
+    std::optional<uint64_t> maxMemoryMb;
+    std::optional<int> sceneIndex;
+    std::string report;
+    bool quiet = false;
+};
+
+// --env takes either "R,G,B" (constant radiance) or an image file.
+Result<baker::EnvironmentConfig> parseEnvFlag(const std::string& value) {
+    baker::EnvironmentConfig e;
+    float rgb[3];
+    char tail;
+    if (std::sscanf(value.c_str(), "%f,%f,%f%c", &rgb[0], &rgb[1], &rgb[2], &tail) == 3) {
+        e.type = baker::EnvironmentConfig::Type::Constant;
+        e.radiance = glm::vec3(rgb[0], rgb[1], rgb[2]);
+        if (e.radiance.x < 0 || e.radiance.y < 0 || e.radiance.z < 0) {
+            return makeError(ErrorCode::OutOfRange, "--env: radiance must be >= 0");
+        }
+        return e;
+    }
+    e.type = baker::EnvironmentConfig::Type::LatLong;
+    e.file = value;
+    return e;
+}
+
+void printProgress(const baker::BakeProgress& p) {
+    const double fraction = p.probesTotal ? double(p.probesDone) / double(p.probesTotal) : 1.0;
+    const int width = 30;
+    const int filled = int(fraction * width);
+    const double eta = fraction > 0 ? p.elapsedSeconds * (1.0 - fraction) / fraction : 0.0;
+    std::fprintf(stderr, "\r  [%.*s%*s] %5.1f%%  %llu/%llu probes  %.1f s, ETA %.1f s ", filled,
+                 "==============================", width - filled, "", fraction * 100.0,
+                 static_cast<unsigned long long>(p.probesDone),
+                 static_cast<unsigned long long>(p.probesTotal), p.elapsedSeconds, eta);
+    std::fflush(stderr);
+}
+
+int runBake(const BakeOptionsCli& o) {
+    Result<baker::BakeConfig> config_result = o.config.empty()
+                                                  ? Result<baker::BakeConfig>(baker::BakeConfig{})
+                                                  : baker::loadBakeConfig(o.config);
+    if (!config_result) {
+        std::fprintf(stderr, "probekit bake: %s\n", config_result.error().message.c_str());
+        return kExitFailure;
+    }
+    baker::BakeConfig config = std::move(config_result).value();
+    // Flags override the config file.
+    if (o.method) {
+        config.method = *o.method;
+    }
+    if (o.samples) {
+        config.path.samples = *o.samples;
+    }
+    if (o.bounces) {
+        config.path.maxBounces = *o.bounces;
+    }
+    if (o.seed) {
+        config.seed = *o.seed;
+    }
+    if (o.maxMemoryMb) {
+        config.maxMemoryBytes = *o.maxMemoryMb << 20;
+    }
+    if (o.env) {
+        Result<baker::EnvironmentConfig> env = parseEnvFlag(*o.env);
+        if (!env) {
+            std::fprintf(stderr, "probekit bake: %s\n", env.error().message.c_str());
+            return kExitFailure;
+        }
+        config.environment = env.value();
+    }
+    if (config.volumes.empty()) {
+        config.volumes.push_back(baker::VolumeConfig{});
+    }
+    for (baker::VolumeConfig& v : config.volumes) {
+        if (!o.resolution.empty()) {
+            const glm::uvec3 res(o.resolution[0], o.resolution[1], o.resolution[2]);
+            v.resolution = res;
+        }
+        if (o.density) {
+            v.resolution.reset();
+            v.density = *o.density;
+        }
+        if (o.position) {
+            v.position =
+                *o.position == "corner" ? grid::PositionMode::Corner : grid::PositionMode::Center;
+        }
+        if (o.format) {
+            v.storage = *o.format == "float" ? Storage::Float32 : Storage::Float16;
+        }
+        if (o.shOrder) {
+            v.shOrder = *o.shOrder == 1 ? sh::Order::L1 : sh::Order::L2;
+        }
+    }
+
+    baker::LoadOptions load_options;
+    load_options.sceneIndex = o.sceneIndex;
+    Result<baker::Scene> scene = baker::loadGltf(o.scene, load_options);
+    if (!scene) {
+        std::fprintf(stderr, "probekit bake: %s\n", scene.error().message.c_str());
+        return kExitFailure;
+    }
+    Result<baker::Environment> env = baker::makeEnvironment(config.environment);
+    if (!env) {
+        std::fprintf(stderr, "probekit bake: %s\n", env.error().message.c_str());
+        return kExitFailure;
+    }
+    scene.value().environment = std::move(env).value();
+    for (const std::string& w : scene.value().warnings) {
+        std::fprintf(stderr, "probekit bake: warning: %s\n", w.c_str());
+    }
+
+    Result<std::vector<VolumeDesc>> placed = baker::resolveVolumes(scene.value(), config);
+    if (!placed) {
+        std::fprintf(stderr, "probekit bake: %s\n", placed.error().message.c_str());
+        return kExitFailure;
+    }
+    if (!o.quiet) {
+        std::printf("baking %s: method %s, %u samples, %u bounces, seed %llu\n", o.scene.c_str(),
+                    config.method.c_str(), config.path.samples, config.path.maxBounces,
+                    static_cast<unsigned long long>(config.seed));
+        for (const VolumeDesc& d : placed.value()) {
+            const glm::uvec3 r = d.grid.resolution();
+            const glm::vec3 lo = d.grid.bounds().min;
+            const glm::vec3 hi = d.grid.bounds().max;
+            std::printf("  volume '%s': %ux%ux%u %s probes, L%d, %s, bounds (%.3f, %.3f, %.3f) "
+                        ".. (%.3f, %.3f, %.3f) m\n",
+                        d.name.c_str(), r.x, r.y, r.z,
+                        std::string(grid::toString(d.grid.mode())).c_str(), int(d.shOrder),
+                        std::string(toString(d.storage)).c_str(), lo.x, lo.y, lo.z, hi.x, hi.y,
+                        hi.z);
+        }
+        std::fflush(stdout);
+    }
+
+    baker::BakeOptions bake_options;
+    bake_options.threads = o.threads;
+    const bool show_progress = !o.quiet && isatty(STDERR_FILENO);
+    if (show_progress) {
+        bake_options.progress = printProgress;
+    }
+    Result<baker::BakeResult> result = baker::bake(scene.value(), config, bake_options);
+    if (show_progress) {
+        std::fprintf(stderr, "\n");
+    }
+    if (!result) {
+        std::fprintf(stderr, "probekit bake: %s\n", result.error().message.c_str());
+        return kExitFailure;
+    }
+    for (const std::string& w : result.value().warnings) {
+        std::fprintf(stderr, "probekit bake: warning: %s\n", w.c_str());
+    }
+    if (auto w = writePvol(o.output, result.value().file); !w) {
+        std::fprintf(stderr, "probekit bake: %s\n", w.error().message.c_str());
+        return kExitFailure;
+    }
+    const baker::BakeStats& s = result.value().stats;
+    nlohmann::json report = {
+        {"scene", o.scene},
+        {"output", o.output},
+        {"bake_seconds", s.seconds},
+        {"probes", s.probes},
+        {"rays", s.rays},
+        {"mrays_per_second", s.mraysPerSecond},
+        {"invalid_probes", s.invalidProbes},
+        {"peak_memory_bytes", s.peakMemoryBytes},
+        {"threads", s.threads},
+        {"settings", nlohmann::json::parse(result.value().file.metadata.parametersJson)},
+    };
+    if (!o.quiet) {
+        std::printf("wrote %s: %.2f s, %llu probes, %.3g rays, %.2f Mrays/s, %llu invalid probes, "
+                    "peak memory %.1f MiB, %u threads\n",
+                    o.output.c_str(), s.seconds, static_cast<unsigned long long>(s.probes),
+                    double(s.rays), s.mraysPerSecond,
+                    static_cast<unsigned long long>(s.invalidProbes),
+                    double(s.peakMemoryBytes) / (1 << 20), s.threads);
+    }
+    if (!o.report.empty()) {
+        const std::string text = report.dump(2) + "\n";
+        if (auto w = writeFileAtomic(
+                o.report, std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+            !w) {
+            std::fprintf(stderr, "probekit bake: --report: %s\n", w.error().message.c_str());
+            return kExitFailure;
+        }
+    }
+    return kExitOk;
+}
+
+} // namespace
+
+void addBakeCommand(CLI::App& app, Command& selected) {
+    auto o = std::make_shared<BakeOptionsCli>();
+    CLI::App* cmd = app.add_subcommand("bake", "Bake SH probe volumes for a glTF scene");
+    cmd->add_option("SCENE", o->scene, "glTF 2.0 scene (.gltf or .glb)")->required();
+    cmd->add_option("-o,--output", o->output, "output .pvol")->required();
+    cmd->add_option("--config", o->config, "bake config JSON (flags override it)");
+    cmd->add_option("--method", o->method, "lighting method")->check(CLI::IsMember({"path"}));
+    cmd->add_option("--samples", o->samples, "path: directions per probe")
+        ->check(CLI::Range(1u, 1u << 24));
+    cmd->add_option("--bounces", o->bounces, "path: maximum bounces")->check(CLI::Range(0u, 1024u));
+    cmd->add_option("--seed", o->seed, "random seed");
+    cmd->add_option("--threads", o->threads, "worker threads (0 = all cores)");
+    auto* res = cmd->add_option("--resolution", o->resolution,
+                                "probes per axis X,Y,Z (powers of two), every volume")
+                    ->delimiter(',')
+                    ->expected(3);
+    cmd->add_option("--density", o->density, "automatic resolution: probes per metre")
+        ->check(CLI::PositiveNumber)
+        ->excludes(res);
+    cmd->add_option("--position", o->position, "probe placement")
+        ->check(CLI::IsMember({"center", "corner"}));
+    cmd->add_option("--format", o->format, "texel storage")
+        ->check(CLI::IsMember({"float", "half"}));
+    cmd->add_option("--sh-order", o->shOrder, "SH order")->check(CLI::IsMember({1, 2}));
+    cmd->add_option("--env", o->env, "environment: constant radiance R,G,B or a lat-long image");
+    cmd->add_option("--max-memory", o->maxMemoryMb, "memory budget for the grids, MiB")
+        ->check(CLI::PositiveNumber);
+    cmd->add_option("--scene", o->sceneIndex, "glTF scene index (default: the file's default)");
+    cmd->add_option("--report", o->report, "write a JSON report of the bake");
+    cmd->add_flag("-q,--quiet", o->quiet, "print nothing but errors");
+    cmd->callback([o, &selected] { selected = [o] { return runBake(*o); }; });
+}
+
+void addSceneCommand(CLI::App& app, Command& selected) {
+    struct Options {
+        std::string name;
+        std::string output;
+    };
+    auto o = std::make_shared<Options>();
+    CLI::App* cmd = app.add_subcommand(
+        "scene", "Write one of the bundled generated scenes as glTF (cornell, thin-wall)");
+    cmd->add_option("NAME", o->name, "scene name")
+        ->required()
+        ->check(CLI::IsMember(baker::generatedSceneNames()));
+    cmd->add_option("-o,--output", o->output, "output .gltf (a .bin is written beside it)")
+        ->required();
+    cmd->callback([o, &selected] {
+        selected = [o] {
+            if (auto w = baker::writeGeneratedScene(o->name, o->output); !w) {
+                std::fprintf(stderr, "probekit scene: %s\n", w.error().message.c_str());
+                return kExitFailure;
+            }
+            std::printf("wrote %s\n", o->output.c_str());
+            return kExitOk;
+        };
+    });
+}
+
+void addBenchRaysCommand(CLI::App& app, Command& selected) {
+    struct Options {
+        std::string scene;
+        uint64_t rays = 4'000'000;
+        uint32_t threads = 0;
+    };
+    auto o = std::make_shared<Options>();
+    CLI::App* cmd = app.add_subcommand(
+        "bench-rays", "Raw Embree throughput on a scene: incoherent closest-hit and occlusion "
+                      "rays, Mrays/s (prints one JSON line)");
+    cmd->add_option("SCENE", o->scene, "glTF scene")->required();
+    cmd->add_option("--rays", o->rays, "rays per measurement")->capture_default_str();
+    cmd->add_option("--threads", o->threads, "threads (0 = all cores)");
+    cmd->callback([o, &selected] {
+        selected = [o] {
+            Result<baker::Scene> scene = baker::loadGltf(o->scene);
+            if (!scene) {
+                std::fprintf(stderr, "probekit bench-rays: %s\n", scene.error().message.c_str());
+                return kExitFailure;
+            }
+            Result<baker::RayThroughput> r =
+                baker::measureRayThroughput(scene.value(), o->rays, o->threads);
+            if (!r) {
+                std::fprintf(stderr, "probekit bench-rays: %s\n", r.error().message.c_str());
+                return kExitFailure;
+            }
+            const nlohmann::json j = {
+                {"scene", o->scene},
+                {"rays", r.value().rays},
+                {"threads", r.value().threads},
+                {"closest_hit_mrays_per_second", r.value().closestHitMraysPerSec},
+                {"occlusion_mrays_per_second", r.value().occlusionMraysPerSec}};
+            std::printf("%s\n", j.dump().c_str());
+            return kExitOk;
+        };
+    });
+}
+
+} // namespace probekit::cli
