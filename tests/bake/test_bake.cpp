@@ -4,6 +4,8 @@
 #include <filesystem>
 #include <fstream>
 
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -139,6 +141,62 @@ TEST(BakeVolumes, DefaultDensityGivesSmallScenesAUsefulGrid) {
     Result<std::vector<VolumeDesc>> hall = resolveVolumes(scene, BakeConfig{});
     ASSERT_TRUE(hall.ok());
     EXPECT_EQ(hall.value()[0].grid.resolution(), glm::uvec3(32, 16, 32));
+}
+
+TEST(BakeVolumes, AutoWorldOverNodesAndAutoLocalFollowingANode) {
+    Scene scene;
+    SceneNode table;
+    table.name = "table";
+    table.gltfIndex = 3;
+    table.hasMesh = true;
+    table.localBounds = {glm::vec3(-1, 0, -0.5f), glm::vec3(1, 1, 0.5f)};
+    // Rotated 90 degrees about +Y, scaled 2x, moved to (10, 0, 0).
+    const glm::mat4 rotation =
+        glm::mat4_cast(glm::angleAxis(glm::radians(90.0f), glm::vec3(0, 1, 0)));
+    table.world = glm::translate(glm::mat4(1.0f), glm::vec3(10, 0, 0)) * rotation *
+                  glm::scale(glm::mat4(1.0f), glm::vec3(2.0f));
+    table.worldBounds = {glm::vec3(9, 0, -2), glm::vec3(11, 2, 2)};
+    SceneNode lamp;
+    lamp.name = "lamp";
+    lamp.gltfIndex = 5;
+    lamp.hasMesh = true;
+    lamp.worldBounds = {glm::vec3(12, 1, 0), glm::vec3(13, 3, 1)};
+    scene.nodes = {table, lamp};
+
+    BakeConfig c;
+    VolumeConfig world;
+    world.name = "world";
+    world.bounds.nodes = {"table", "5"}; // by name and by glTF index
+    world.bounds.padding = 0.5f;
+    world.resolution = glm::uvec3(4);
+    VolumeConfig local;
+    local.name = "local";
+    local.bounds.mode = BoundsMode::AutoLocal;
+    local.bounds.node = "table";
+    local.resolution = glm::uvec3(2);
+    c.volumes = {world, local};
+    Result<std::vector<VolumeDesc>> d = resolveVolumes(scene, c);
+    ASSERT_TRUE(d.ok()) << d.error().message;
+    // Union of both nodes' world boxes, padded by 0.5 m.
+    EXPECT_EQ(d.value()[0].grid.bounds().min, glm::vec3(8.5f, -0.5f, -2.5f));
+    EXPECT_EQ(d.value()[0].grid.bounds().max, glm::vec3(13.5f, 3.5f, 2.5f));
+    // The local box carries the node's scale; the frame carries rotation and translation.
+    constexpr float kFrameTolerance = 1e-5f;
+    const grid::GridLayout& g = d.value()[1].grid;
+    EXPECT_NEAR(g.bounds().min.x, -2.0f, kFrameTolerance);
+    EXPECT_NEAR(g.bounds().max.z, 1.0f, kFrameTolerance);
+    // Local +x of the table points along world -z after the rotation.
+    const glm::vec3 corner = g.gridToWorld(glm::vec3(1, 0, 0)) - g.gridToWorld(glm::vec3(0, 0, 0));
+    EXPECT_NEAR(corner.z, -g.spacing().x, kFrameTolerance);
+    EXPECT_NEAR(g.frame().translation.x, 10.0f, kFrameTolerance);
+
+    c.volumes[1].bounds.node = "chair";
+    Result<std::vector<VolumeDesc>> missing = resolveVolumes(scene, c);
+    ASSERT_FALSE(missing.ok());
+    EXPECT_NE(
+        missing.error().message.find("volumes[1] ('local').bounds.node: no node named 'chair'"),
+        std::string::npos)
+        << missing.error().message;
 }
 
 TEST(BakeVolumes, MemoryBudgetIsEnforced) {

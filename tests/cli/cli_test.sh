@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# End-to-end checks of the probekit CLI: exit codes, error messages naming the file and field,
+# and no output left behind by a failed command. Usage: cli_test.sh PROBEKIT WORKDIR
+set -u
+pk=$1
+work=$2
+rm -rf "$work" && mkdir -p "$work" && cd "$work" || exit 1
+passed=0
+failed=0
+
+# expect CODE PATTERN -- COMMAND...: exit code CODE and stderr+stdout matching PATTERN.
+expect() {
+    local code=$1 pattern=$2
+    shift 3
+    local out rc
+    out=$("$@" 2>&1)
+    rc=$?
+    if [[ $rc -eq $code ]] && grep -qE -- "$pattern" <<<"$out"; then
+        passed=$((passed + 1))
+    else
+        failed=$((failed + 1))
+        echo "FAIL: $* -> exit $rc (want $code), output must match '$pattern':"
+        echo "$out" | head -5
+    fi
+}
+check() { # check DESCRIPTION COMMAND...: the command must succeed.
+    local what=$1
+    shift
+    if "$@"; then passed=$((passed + 1)); else failed=$((failed + 1)); echo "FAIL: $what"; fi
+}
+
+expect 2 "Usage|subcommand" -- "$pk"
+expect 0 "bake" -- "$pk" --help
+expect 0 "--points" -- "$pk" sample --help
+expect 2 "" -- "$pk" bake --no-such-flag x.gltf -o y.pvol
+
+expect 0 "wrote cornell.gltf" -- "$pk" scene cornell -o cornell.gltf
+expect 0 "wrote small.pvol" -- "$pk" bake cornell.gltf -o small.pvol --resolution 2,2,2 \
+    --samples 16 --report report.json
+check "report names the bake figures" grep -q '"mrays_per_second"' report.json
+expect 0 "valid \(1 volume" -- "$pk" validate small.pvol
+expect 0 '"resolution": \[' -- "$pk" info small.pvol --json
+
+# Bad input: each names the file or field, exits 1, and leaves no output file.
+expect 1 "missing.gltf" -- "$pk" bake missing.gltf -o out1.pvol
+check "no output after a failed bake" test ! -e out1.pvol
+expect 1 "resolution.x = 12 is not a power of two" -- \
+    "$pk" bake cornell.gltf -o out2.pvol --resolution 12,8,8
+check "no output after a bad resolution" test ! -e out2.pvol
+printf '{"volumes": [{"bounds": {"mode": "custom", "min": [0,0,0], "max": [1,0,1]}}]}' >bad.json
+expect 1 "bad.json: volumes\[0\].bounds.max\[1\]" -- \
+    "$pk" bake cornell.gltf -o out3.pvol --config bad.json
+expect 1 "max_memory_mb = 1 " -- \
+    "$pk" bake cornell.gltf -o out4.pvol --resolution 256,256,64 --max-memory 1
+printf '{"asset": {"version": "2.0"}, "extensionsRequired": ["KHR_draco_mesh_compression"]}' \
+    >draco.gltf
+expect 1 "KHR_draco_mesh_compression" -- "$pk" bake draco.gltf -o out5.pvol
+printf 'not json' >broken.gltf
+expect 1 "broken.gltf" -- "$pk" bake broken.gltf -o out6.pvol
+
+head -c 100 small.pvol >truncated.pvol
+expect 1 "truncated.pvol" -- "$pk" validate truncated.pvol
+expect 1 "truncated.pvol" -- "$pk" info truncated.pvol
+
+printf 'x,y,z,nx,ny,nz\n0.2,0.2,0.2,0,1,0\n' >points.csv
+expect 0 "^x,y,z,nx,ny,nz,r,g,b" -- "$pk" sample small.pvol --points points.csv
+printf 'x,y,z\n0,0,0\n' >badpoints.csv
+expect 1 "badpoints.csv" -- "$pk" sample small.pvol --points badpoints.csv
+
+echo "$passed passed, $failed failed"
+[[ $failed -eq 0 ]]
