@@ -67,5 +67,12 @@ expect 0 "^x,y,z,nx,ny,nz,r,g,b" -- "$pk" sample small.pvol --points points.csv
 printf 'x,y,z\n0,0,0\n' >badpoints.csv
 expect 1 "badpoints.csv" -- "$pk" sample small.pvol --points badpoints.csv
 
+# diff: a metric with a tolerance, exit 1 above it.
+"$pk" synth -o sky1.pvol >/dev/null && "$pk" synth -o sky2.pvol --intensity 11 >/dev/null
+expect 0 '"pass":true' -- "$pk" diff sky2.pvol sky1.pvol --tolerance 0.2
+expect 1 '"pass":false' -- "$pk" diff sky2.pvol sky1.pvol --tolerance 0.01
+"$pk" synth -o sky4.pvol --resolution 4,4,4 >/dev/null
+expect 1 "resolution differs" -- "$pk" diff sky4.pvol sky1.pvol
+
 echo "$passed passed, $failed failed"
 [[ $failed -eq 0 ]]

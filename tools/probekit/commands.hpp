@@ -20,6 +20,7 @@ void addValidateCommand(CLI::App& app, Command& selected);
 void addSynthCommand(CLI::App& app, Command& selected);
 void addSampleCommand(CLI::App& app, Command& selected);
 void addBakeCommand(CLI::App& app, Command& selected);
+void addDiffCommand(CLI::App& app, Command& selected);
 void addSceneCommand(CLI::App& app, Command& selected);
 void addBenchRaysCommand(CLI::App& app, Command& selected);
 
