@@ -6,6 +6,8 @@ find_package(Imath CONFIG REQUIRED)
 find_package(cereal CONFIG REQUIRED)
 find_package(nlohmann_json CONFIG REQUIRED)
 find_package(CLI11 CONFIG REQUIRED)
+# The runtime: the Vulkan loader and headers, and glslc to compile shaders/ at build time.
+find_package(Vulkan REQUIRED COMPONENTS glslc)
 
 if(PROBEKIT_BUILD_TESTS)
     find_package(GTest CONFIG REQUIRED)

@@ -5,8 +5,18 @@
 // Texel planes (formats/include/probekit/formats/volume.hpp): plane c (0..2) holds
 // (L00, L1-1, L10, L11) of channel c; planes 3..6 hold the 15 band-2 values, value j = 3k + c at
 // plane 3 + j / 4, component j % 4.
+//
+// Two levels:
+//  * Always: pk_sh_irradiance and pk_unpack_probe, pure functions on coefficients.
+//  * With PK_VOLUME_SET defined (the descriptor set index the application binds
+//    probekit::runtime::GpuVolumeSet::descriptorSet() to) before the include: the volume-set
+//    bindings (layout in probe_volume_layout.h, shared with C++) and pk_irradiance(worldPos,
+//    normal), the GPU twin of probekit::runtime::VolumeSet::irradiance. Usable in any stage
+//    (it samples with explicit LOD 0).
 #ifndef PROBEKIT_PROBE_VOLUME_GLSL
 #define PROBEKIT_PROBE_VOLUME_GLSL
+
+#include "probe_volume_layout.h"
 
 const float PK_PI = 3.14159265358979323846;
 
@@ -42,5 +52,234 @@ void pk_unpack_probe(vec4 t[7], bool l2, out vec3 sh[9]) {
         sh[4 + k] = c;
     }
 }
+
+#ifdef PK_VOLUME_SET
+
+layout(std140, set = PK_VOLUME_SET, binding = PK_BINDING_VOLUMES) uniform PkVolumeSetBlock {
+    PkVolumeSetGpu pk_volume_set;
+};
+// Element PK_MAX_PLANES * slot + plane. Indexed with constants only (see pk_fetch_planes), so
+// no dynamic-indexing feature is needed.
+layout(set = PK_VOLUME_SET, binding = PK_BINDING_STATE_A) uniform texture3D
+    pk_state_a[PK_MAX_VOLUMES * PK_MAX_PLANES];
+layout(set = PK_VOLUME_SET, binding = PK_BINDING_STATE_B) uniform texture3D
+    pk_state_b[PK_MAX_VOLUMES * PK_MAX_PLANES];
+layout(set = PK_VOLUME_SET, binding = PK_BINDING_SAMPLER) uniform sampler pk_linear_clamp;
+
+// Slot of the i-th volume in blending order (descending priority, ties in set order).
+uint pk_blend_slot(uint i) {
+    return pk_volume_set.order[i / 4u][i % 4u];
+}
+
+// World -> the volume's local frame. Mirrors grid::RigidFrame::toLocal:
+// conjugate(rotation) * (world - translation).
+vec3 pk_to_local(uint s, vec3 world) {
+    const vec4 r0 = pk_volume_set.volumes[s].worldToLocal0;
+    const vec4 r1 = pk_volume_set.volumes[s].worldToLocal1;
+    const vec4 r2 = pk_volume_set.volumes[s].worldToLocal2;
+    const vec3 d = world - vec3(r0.w, r1.w, r2.w);
+    return vec3(dot(r0.xyz, d), dot(r1.xyz, d), dot(r2.xyz, d));
+}
+
+// Blend weight w(p) in [0, 1]. Mirrors runtime::volumeWeight (and depthInside) in
+// runtime/src/sampler.cpp.
+float pk_volume_weight(uint s, vec3 local) {
+    const vec4 box_min = pk_volume_set.volumes[s].boxMin;
+    const vec3 box_max = pk_volume_set.volumes[s].boxMax.xyz;
+    const vec3 to_faces = min(local - box_min.xyz, box_max - local);
+    const float depth = min(to_faces.x, min(to_faces.y, to_faces.z));
+    if (!(depth >= 0.0)) {
+        return 0.0;
+    }
+    const float fade = box_min.w;
+    if (fade <= 0.0) {
+        return 1.0; // hard border: the closed box counts in full
+    }
+    return min(depth / fade, 1.0);
+}
+
+// Distance from the box in metres (0 inside). Mirrors runtime::distanceToVolume.
+float pk_distance_to_volume(uint s, vec3 local) {
+    const vec3 box_min = pk_volume_set.volumes[s].boxMin.xyz;
+    const vec3 box_max = pk_volume_set.volumes[s].boxMax.xyz;
+    return length(max(max(box_min - local, local - box_max), 0.0));
+}
+
+// Texture coordinate of steps 1-3 of the sampler.hpp specification: grid coordinates
+// (grid::GridLayout::localToGrid), clamped to [0, res - 1] (runtime's axisTaps; NaN -> 0), at
+// (g + 0.5) / res, where linear filtering with clamp-to-edge interpolates exactly the probes
+// floor(g) and floor(g) + 1 with weights fract(g).
+vec3 pk_volume_uvw(uint s, vec3 local) {
+    const vec4 spacing = pk_volume_set.volumes[s].spacing;
+    const vec3 res = vec3(pk_volume_set.volumes[s].resolution.xyz);
+    vec3 g = (local - pk_volume_set.volumes[s].boxMin.xyz) / spacing.xyz - spacing.w;
+    g = mix(g, vec3(0.0), isnan(g));
+    g = clamp(g, vec3(0.0), res - 1.0);
+    return (g + 0.5) / res;
+}
+
+#if PK_MAX_VOLUMES != 8
+#error "pk_fetch_planes has one case per slot: update it with PK_MAX_VOLUMES"
+#endif
+
+#define PK_FETCH_L1(STATE, S, UVW, T)                                                          \
+    T[0] = textureLod(sampler3D(STATE[(S)*PK_MAX_PLANES + 0], pk_linear_clamp), UVW, 0.0);     \
+    T[1] = textureLod(sampler3D(STATE[(S)*PK_MAX_PLANES + 1], pk_linear_clamp), UVW, 0.0);     \
+    T[2] = textureLod(sampler3D(STATE[(S)*PK_MAX_PLANES + 2], pk_linear_clamp), UVW, 0.0);
+#define PK_FETCH_L2(STATE, S, UVW, T)                                                          \
+    T[3] = textureLod(sampler3D(STATE[(S)*PK_MAX_PLANES + 3], pk_linear_clamp), UVW, 0.0);     \
+    T[4] = textureLod(sampler3D(STATE[(S)*PK_MAX_PLANES + 4], pk_linear_clamp), UVW, 0.0);     \
+    T[5] = textureLod(sampler3D(STATE[(S)*PK_MAX_PLANES + 5], pk_linear_clamp), UVW, 0.0);     \
+    T[6] = textureLod(sampler3D(STATE[(S)*PK_MAX_PLANES + 6], pk_linear_clamp), UVW, 0.0);
+#define PK_FETCH_SLOT(S)                                                                       \
+    case S:                                                                                    \
+        PK_FETCH_L1(pk_state_a, S, uvw, t)                                                     \
+        if (l2) {                                                                              \
+            PK_FETCH_L2(pk_state_a, S, uvw, t)                                                 \
+        }                                                                                      \
+        if (blend) {                                                                           \
+            PK_FETCH_L1(pk_state_b, S, uvw, tb)                                                \
+            if (l2) {                                                                          \
+                PK_FETCH_L2(pk_state_b, S, uvw, tb)                                            \
+            }                                                                                  \
+        }                                                                                      \
+        break;
+
+// The hardware-filtered texels of slot s at texture coordinate uvw: step 3 of the
+// specification, i.e. the accumulation loop of runtime::sampleVolumeSh. A volume with a second
+// state mixes the two filtered states, a (1 - f) + b f, which equals filtering the mixed texels
+// (filtering is linear); f = 1 gives state b exactly. Planes a volume does not have are zero.
+void pk_fetch_planes(uint s, vec3 uvw, out vec4 t[PK_MAX_PLANES]) {
+    const uint flags = pk_volume_set.volumes[s].resolution.w;
+    const bool l2 = (flags & PK_VOLUME_FLAG_L2) != 0u;
+    const bool blend = (flags & PK_VOLUME_FLAG_BLEND) != 0u;
+    vec4 tb[PK_MAX_PLANES];
+    for (int p = 0; p < PK_MAX_PLANES; ++p) {
+        t[p] = vec4(0.0);
+        tb[p] = vec4(0.0);
+    }
+    // One case per slot, so every array index is a constant (s is uniform in every caller).
+    switch (s) {
+        PK_FETCH_SLOT(0)
+        PK_FETCH_SLOT(1)
+        PK_FETCH_SLOT(2)
+        PK_FETCH_SLOT(3)
+        PK_FETCH_SLOT(4)
+        PK_FETCH_SLOT(5)
+        PK_FETCH_SLOT(6)
+        PK_FETCH_SLOT(7)
+    }
+    if (blend) {
+        const float f = pk_volume_set.volumes[s].boxMax.w;
+        for (int p = 0; p < PK_MAX_PLANES; ++p) {
+            t[p] = t[p] * (1.0 - f) + tb[p] * f;
+        }
+    }
+}
+
+// Irradiance of one volume at a local position. Mirrors
+// sh::irradiance(runtime::sampleVolumeSh(volume, p), order, n).
+vec3 pk_volume_irradiance(uint s, vec3 local, vec3 n) {
+    vec4 t[PK_MAX_PLANES];
+    pk_fetch_planes(s, pk_volume_uvw(s, local), t);
+    vec3 sh[9];
+    pk_unpack_probe(t, (pk_volume_set.volumes[s].resolution.w & PK_VOLUME_FLAG_L2) != 0u, sh);
+    return pk_sh_irradiance(sh, n);
+}
+
+// Irradiance E (W/m^2, not divided by pi) at world position p for a receiver with unit world
+// normal n, blended over every volume of the set. Mirrors, term for term,
+// probekit::runtime::VolumeSet::irradiance(p, n, normal_offset) (runtime/src/sampler.cpp), with
+// normal_offset = params.x: the sample point moves that many metres along n, away from the
+// surface whose probes may sit behind it (self-leaking); 0 samples p itself.
+vec3 pk_irradiance(vec3 world_position, vec3 normal) {
+    const vec3 p = world_position + pk_volume_set.params.x * normal;
+    const uint count = pk_volume_set.header.x;
+    vec3 weighted_sum = vec3(0.0);
+    float weight_sum = 0.0;
+    float remaining = 1.0;
+    for (uint i = 0u; i < count; ++i) {
+        const uint s = pk_blend_slot(i);
+        const vec3 local = pk_to_local(s, p);
+        const float w = pk_volume_weight(s, local);
+        if (w <= 0.0) {
+            continue;
+        }
+        const float a = w * remaining;
+        weighted_sum += a * pk_volume_irradiance(s, local, normal);
+        weight_sum += a;
+        remaining -= a;
+        // A volume at full weight hides everything of lower priority.
+        if (remaining <= 0.0) {
+            break;
+        }
+    }
+    if (weight_sum > 0.0) {
+        return weighted_sum / weight_sum;
+    }
+    // Outside every volume: the nearest box, ties to the earlier volume in blending order.
+    uint nearest = pk_blend_slot(0u);
+    float nearest_distance = 0.0;
+    for (uint i = 0u; i < count; ++i) {
+        const uint s = pk_blend_slot(i);
+        const float d = pk_distance_to_volume(s, pk_to_local(s, p));
+        if (i == 0u || d < nearest_distance) {
+            nearest = s;
+            nearest_distance = d;
+        }
+    }
+    return pk_volume_irradiance(nearest, pk_to_local(nearest, p), normal);
+}
+
+// Irradiance from one probe's own coefficients, no interpolation: sh::irradiance of
+// Volume::probe. At a texel centre (probe + 0.5) / res, exact for power-of-two resolutions,
+// linear filtering weighs that texel alone.
+vec3 pk_probe_irradiance(uint s, uvec3 probe, vec3 n) {
+    vec4 t[PK_MAX_PLANES];
+    pk_fetch_planes(s, (vec3(probe) + 0.5) / vec3(pk_volume_set.volumes[s].resolution.xyz), t);
+    vec3 sh[9];
+    pk_unpack_probe(t, (pk_volume_set.volumes[s].resolution.w & PK_VOLUME_FLAG_L2) != 0u, sh);
+    return pk_sh_irradiance(sh, n);
+}
+
+// The texture fetches of pk_irradiance and nothing else: the same volumes (the same coverage
+// test and early exit, so the same fetches), the same coordinates, but no SH unpacking,
+// evaluation or weighted blending; the fetched texels are summed so none is optimised away.
+// The cost floor of pk_irradiance, for benchmarks.
+vec4 pk_fetch_only(vec3 world_position, vec3 normal) {
+    const vec3 p = world_position + pk_volume_set.params.x * normal;
+    const uint count = pk_volume_set.header.x;
+    vec4 sum = vec4(0.0);
+    vec4 t[PK_MAX_PLANES];
+    float remaining = 1.0;
+    bool covered = false;
+    for (uint i = 0u; i < count; ++i) {
+        const uint s = pk_blend_slot(i);
+        const vec3 local = pk_to_local(s, p);
+        const float w = pk_volume_weight(s, local);
+        if (w <= 0.0) {
+            continue;
+        }
+        covered = true;
+        pk_fetch_planes(s, pk_volume_uvw(s, local), t);
+        for (int k = 0; k < PK_MAX_PLANES; ++k) {
+            sum += t[k];
+        }
+        remaining -= w * remaining;
+        if (remaining <= 0.0) {
+            break;
+        }
+    }
+    if (!covered) {
+        const uint s = pk_blend_slot(0u);
+        pk_fetch_planes(s, pk_volume_uvw(s, pk_to_local(s, p)), t);
+        for (int k = 0; k < PK_MAX_PLANES; ++k) {
+            sum += t[k];
+        }
+    }
+    return sum;
+}
+
+#endif // PK_VOLUME_SET
 
 #endif

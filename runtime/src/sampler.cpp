@@ -159,4 +159,9 @@ glm::vec3 VolumeSet::irradiance(glm::vec3 world_position, glm::vec3 normal) cons
     return sh::irradiance(sampleVolumeSh(*nearest, world_position), nearest->desc.shOrder, normal);
 }
 
+glm::vec3 VolumeSet::irradiance(glm::vec3 world_position, glm::vec3 normal,
+                                float normal_offset) const {
+    return irradiance(world_position + normal_offset * normal, normal);
+}
+
 } // namespace probekit::runtime

@@ -1,7 +1,7 @@
 // probekit::runtime CPU reference sampler — the specification the GPU path must match.
 //
-// shaders/probe_volume.glsl's pk_irradiance mirrors sampleIrradiance term for term; the GPU
-// tests compare against this code. It needs no Vulkan and no baker.
+// shaders/probe_volume.glsl's pk_irradiance mirrors VolumeSet::irradiance term for term; the GPU
+// tests (tests/gpu/) compare against this code. It needs no Vulkan and no baker.
 //
 // Sampling one volume at world position p:
 //   1. g = volume.grid.worldToGrid(p) (continuous grid coordinates, probe i at i).
@@ -60,6 +60,12 @@ public:
     // Irradiance E in W/m^2 (not divided by pi) for a receiver at world position p with unit
     // world normal n, blended over all volumes as described above. Precondition: !empty().
     glm::vec3 irradiance(glm::vec3 world_position, glm::vec3 normal) const;
+
+    // The same at the sample point p + normal_offset * n (metres along the normal; n is still
+    // the receiver normal). Moving off the surface keeps a receiver from interpolating probes
+    // that sit behind it (self-leaking). pk_irradiance mirrors this with
+    // GpuVolumeSet::setNormalOffset; normal_offset 0 is irradiance(p, n) exactly.
+    glm::vec3 irradiance(glm::vec3 world_position, glm::vec3 normal, float normal_offset) const;
 
 private:
     std::vector<Volume> m_volumes;

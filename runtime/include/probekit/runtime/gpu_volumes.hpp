@@ -1,0 +1,146 @@
+// probekit::runtime::GpuVolumeSet — probe volumes as Vulkan 3D textures, sampled in GLSL by
+// pk_irradiance (shaders/probe_volume.glsl), the GPU twin of VolumeSet::irradiance.
+//
+// Each volume is uploaded in its stored format (RGBA16F or RGBA32F texels, unconverted) as one
+// 3D image per texel plane (3 for L1, 7 for L2; packing in formats/.../volume.hpp), through a
+// host-visible staging buffer. A sampler with linear filtering, clamp-to-edge addressing and no
+// mipmaps makes hardware trilinear filtering at texture coordinate (g + 0.5) / res the clamp +
+// trilinear step of the CPU sampler (runtime/include/probekit/runtime/sampler.hpp).
+//
+// The descriptor set (layout: probe_volume_layout.h, bindings PK_BINDING_*) holds one uniform
+// buffer (gpu::PkVolumeSetGpu: frames, boxes, fades, blending order, flags) and the planes of
+// up to PK_MAX_VOLUMES volumes in two states. Applications create their pipeline layouts with
+// createVolumeSetLayout (or descriptorSetLayout()), bind descriptorSet() at the set index they
+// #define as PK_VOLUME_SET before including probe_volume.glsl, and call pk_irradiance.
+//
+// Dynamic updates and synchronisation. All calls use the context's queue, from one thread.
+//  * replaceVolume / updateBox upload texels and return when the copy has completed. Their
+//    command buffer first waits (pipeline barrier) for every shader read submitted before it on
+//    the queue, so earlier frames see the old texels and later frames the new ones: no frame
+//    ever samples a half-copied volume. updateBox copies exactly the texels of the box.
+//  * setFrame, setStateBlend and setNormalOffset only change CPU-side uniforms. They reach the
+//    GPU through recordUniformUpdate(cmd), which the application records once per frame
+//    (outside a render pass, before its commands that sample the set); the data is captured in
+//    the command buffer at record time, so frames in flight keep the values they were
+//    recorded with. No texel is re-uploaded; a moved volume samples its texels in its new frame.
+//  * A volume's second state (replaceVolume(..., VolumeState::Secondary)) is mixed with the
+//    first by setStateBlend's factor f on the GPU, a (1 - f) + b f per filtered texel, so
+//    animating f costs no upload. Allocating the second state rewrites the descriptor set: it
+//    waits for the queue to go idle and invalidates command buffers recorded earlier with the
+//    set bound (record them again).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include <glm/vec3.hpp>
+#include <vulkan/vulkan.h>
+
+#include "probe_volume_layout.h"
+#include "probekit/formats/grid.hpp"
+#include "probekit/formats/result.hpp"
+#include "probekit/formats/volume.hpp"
+#include "probekit/runtime/gpu_context.hpp"
+
+namespace probekit::runtime {
+
+constexpr size_t kMaxGpuVolumes = PK_MAX_VOLUMES;
+
+// Which of a volume's two texel states an upload writes.
+enum class VolumeState : uint8_t {
+    Primary = 0,   // what the volume shows at blend factor 0 (always present)
+    Secondary = 1, // what it shows at blend factor 1 (allocated on first upload)
+};
+
+// ---- CPU-side packing (pure functions, no Vulkan; unit-tested without a GPU) ----
+
+// Blending order: indices of `descs` by descending blendPriority, ties in index order. The same
+// order VolumeSet::irradiance visits.
+std::vector<uint32_t> blendOrder(std::span<const VolumeDesc> descs);
+
+// One volume's uniforms. `blend` in [0, 1] is the factor towards the second state; > 0 sets
+// PK_VOLUME_FLAG_BLEND (the caller guarantees a second state is bound).
+gpu::PkVolumeGpu packVolumeGpu(const VolumeDesc& desc, float blend);
+
+// The whole uniform buffer. Preconditions: 1 <= descs.size() <= kMaxGpuVolumes, blends has one
+// entry per volume.
+gpu::PkVolumeSetGpu packVolumeSetGpu(std::span<const VolumeDesc> descs,
+                                     std::span<const float> blends, float normal_offset);
+
+// The texels of the probes [first, first + count) of every plane, in staging order: plane by
+// plane, then z, y, x (x fastest), in the volume's storage format (raw float or half bits).
+// Preconditions: count >= 1 per axis and first + count <= resolution.
+std::vector<uint8_t> packTexelBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count);
+
+// Creates the descriptor set layout probe_volume.glsl declares (all shader stages). Identically
+// defined layouts are compatible, so pipelines made with it accept any GpuVolumeSet's set. The
+// caller destroys it.
+Result<VkDescriptorSetLayout> createVolumeSetLayout(const GpuContext& context);
+
+class GpuVolumeSet {
+public:
+    // Uploads every volume (1..kMaxGpuVolumes of them; each must pass validateVolume) in its
+    // primary state, blend factors 0, normal offset 0. The context must outlive the set.
+    static Result<GpuVolumeSet> create(GpuContext& context, std::span<const Volume> volumes);
+
+    GpuVolumeSet(GpuVolumeSet&&) noexcept;
+    GpuVolumeSet& operator=(GpuVolumeSet&&) noexcept;
+    ~GpuVolumeSet();
+
+    size_t size() const;
+    // The volume as the GPU sees it (after setFrame and replaceVolume). Index = slot = position
+    // in the `volumes` given to create.
+    const VolumeDesc& desc(size_t index) const;
+    // Validity bytes of the primary state (one per probe).
+    const std::vector<uint8_t>& validity(size_t index) const;
+    bool hasSecondState(size_t index) const;
+    float stateBlend(size_t index) const;
+    float normalOffset() const;
+    // Bytes of texel data held on the GPU (both states).
+    size_t texelBytes() const;
+    // Texel bytes copied to the GPU since creation (initial uploads included): moving a volume
+    // or changing a blend factor leaves it unchanged.
+    size_t uploadedBytes() const;
+
+    VkDescriptorSetLayout descriptorSetLayout() const;
+    VkDescriptorSet descriptorSet() const;
+
+    // Replaces a state's texels (and, for the primary state, validity and desc: bounds, frame,
+    // fade, priority, name) with `volume`'s. The layout must match the slot's: resolution,
+    // position mode, SH order and storage (the images are reused); a secondary state must
+    // also have the primary's bounds. Fails with InvalidArgument naming the mismatch.
+    Result<void> replaceVolume(size_t index, const Volume& volume,
+                               VolumeState state = VolumeState::Primary);
+
+    // Copies the texels of probes [first, first + count) from `source` (same layout as the
+    // slot) into a state, and nothing else; for the primary state the validity of the box too.
+    // Fails with OutOfRange when the box is empty or leaves the grid.
+    Result<void> updateBox(size_t index, const Volume& source, glm::uvec3 first, glm::uvec3 count,
+                           VolumeState state = VolumeState::Primary);
+
+    // Moves a volume (new local -> world frame); texels stay where they are. Fails on a
+    // non-unit or non-finite rotation or translation.
+    Result<void> setFrame(size_t index, const grid::RigidFrame& frame);
+
+    // Mix factor towards the second state, clamped to [0, 1]. Precondition: hasSecondState, or
+    // blend == 0.
+    void setStateBlend(size_t index, float blend);
+
+    // Metres along the receiver normal that pk_irradiance moves its sample point (against
+    // self-leaking; VolumeSet::irradiance's normal_offset). 0 reproduces the CPU sampler.
+    void setNormalOffset(float metres);
+
+    // Records the uniform update of the changes above (nothing when there are none) with the
+    // barriers that order it after earlier shader reads and before later ones. Outside a
+    // render pass.
+    void recordUniformUpdate(VkCommandBuffer cmd);
+
+private:
+    struct Impl;
+    explicit GpuVolumeSet(std::unique_ptr<Impl> impl);
+    std::unique_ptr<Impl> m_impl;
+};
+
+} // namespace probekit::runtime

@@ -1,0 +1,623 @@
+#include "probekit/runtime/gpu_volumes.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cassert>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+#include <string>
+
+#include <glm/gtc/quaternion.hpp>
+#include <glm/mat3x3.hpp>
+
+#include "vk_util.hpp"
+
+namespace probekit::runtime {
+
+using detail::Buffer;
+using detail::Image;
+
+namespace {
+
+constexpr uint32_t kPlaneElements = PK_MAX_VOLUMES * PK_MAX_PLANES;
+// Shader reads of the set may happen in any stage the application uses.
+constexpr VkPipelineStageFlags kAnyStage = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT;
+
+VkFormat texelFormat(Storage storage) {
+    return storage == Storage::Float32 ? VK_FORMAT_R32G32B32A32_SFLOAT
+                                       : VK_FORMAT_R16G16B16A16_SFLOAT;
+}
+
+size_t texelSize(Storage storage) {
+    return 4 * bytesPerComponent(storage);
+}
+
+std::string slotName(size_t index, const VolumeDesc& desc) {
+    return "volume " + std::to_string(index) + " (\"" + desc.name + "\")";
+}
+
+// Whether `incoming` can be written into images made for `current`; the reason when not.
+std::string layoutMismatch(const VolumeDesc& current, const VolumeDesc& incoming) {
+    const glm::uvec3 a = current.grid.resolution();
+    const glm::uvec3 b = incoming.grid.resolution();
+    if (a != b) {
+        return "resolution " + std::to_string(b.x) + "x" + std::to_string(b.y) + "x" +
+               std::to_string(b.z) + " differs from the uploaded " + std::to_string(a.x) + "x" +
+               std::to_string(a.y) + "x" + std::to_string(a.z);
+    }
+    if (current.grid.mode() != incoming.grid.mode()) {
+        return "position mode differs";
+    }
+    if (current.shOrder != incoming.shOrder) {
+        return "SH order differs";
+    }
+    if (current.storage != incoming.storage) {
+        return std::string("storage ") + std::string(toString(incoming.storage)) +
+               " differs from the uploaded " + std::string(toString(current.storage));
+    }
+    return {};
+}
+
+} // namespace
+
+std::vector<uint32_t> blendOrder(std::span<const VolumeDesc> descs) {
+    std::vector<uint32_t> order(descs.size());
+    std::iota(order.begin(), order.end(), 0u);
+    // Stable, as VolumeSet's m_byPriority: equal priorities keep set order.
+    std::stable_sort(order.begin(), order.end(), [descs](uint32_t a, uint32_t b) {
+        return descs[a].blendPriority > descs[b].blendPriority;
+    });
+    return order;
+}
+
+gpu::PkVolumeGpu packVolumeGpu(const VolumeDesc& desc, float blend) {
+    const grid::GridLayout& layout = desc.grid;
+    // Columns of R^T; row i of R^T is (m[0][i], m[1][i], m[2][i]).
+    const glm::mat3 m = glm::mat3_cast(glm::conjugate(layout.frame().rotation));
+    const glm::vec3 t = layout.frame().translation;
+    gpu::PkVolumeGpu v{};
+    v.worldToLocal0 = glm::vec4(m[0][0], m[1][0], m[2][0], t.x);
+    v.worldToLocal1 = glm::vec4(m[0][1], m[1][1], m[2][1], t.y);
+    v.worldToLocal2 = glm::vec4(m[0][2], m[1][2], m[2][2], t.z);
+    v.boxMin = glm::vec4(layout.bounds().min, desc.fadeDistance);
+    v.boxMax = glm::vec4(layout.bounds().max, blend);
+    v.spacing =
+        glm::vec4(layout.spacing(), layout.mode() == grid::PositionMode::Center ? 0.5f : 0.0f);
+    uint32_t flags = 0;
+    if (desc.shOrder == sh::Order::L2) {
+        flags |= PK_VOLUME_FLAG_L2;
+    }
+    if (blend > 0.0f) {
+        flags |= PK_VOLUME_FLAG_BLEND;
+    }
+    v.resolution = glm::uvec4(layout.resolution(), flags);
+    return v;
+}
+
+gpu::PkVolumeSetGpu packVolumeSetGpu(std::span<const VolumeDesc> descs,
+                                     std::span<const float> blends, float normal_offset) {
+    assert(!descs.empty() && descs.size() <= kMaxGpuVolumes && blends.size() == descs.size());
+    gpu::PkVolumeSetGpu set{};
+    set.header = glm::uvec4(uint32_t(descs.size()), 0u, 0u, 0u);
+    set.params = glm::vec4(normal_offset, 0.0f, 0.0f, 0.0f);
+    const std::vector<uint32_t> order = blendOrder(descs);
+    for (size_t i = 0; i < order.size(); ++i) {
+        set.order[i / 4][int(i % 4)] = order[i];
+    }
+    for (size_t i = 0; i < descs.size(); ++i) {
+        set.volumes[i] = packVolumeGpu(descs[i], blends[i]);
+    }
+    return set;
+}
+
+std::vector<uint8_t> packTexelBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count) {
+    const grid::GridLayout& layout = volume.desc.grid;
+    assert(glm::all(glm::greaterThanEqual(count, glm::uvec3(1u))));
+    assert(glm::all(glm::lessThanEqual(first + count, layout.resolution())));
+    const size_t texel_bytes = texelSize(volume.desc.storage);
+    const size_t box_texels = size_t(count.x) * count.y * count.z;
+    std::vector<uint8_t> bytes(volume.planes() * box_texels * texel_bytes);
+    const auto* source = volume.desc.storage == Storage::Float32
+                             ? reinterpret_cast<const uint8_t*>(volume.texelsF32.data())
+                             : reinterpret_cast<const uint8_t*>(volume.texelsF16.data());
+    const size_t probes = volume.probeCount();
+    const size_t row_bytes = count.x * texel_bytes;
+    uint8_t* out = bytes.data();
+    for (uint32_t p = 0; p < volume.planes(); ++p) {
+        for (uint32_t z = first.z; z < first.z + count.z; ++z) {
+            for (uint32_t y = first.y; y < first.y + count.y; ++y) {
+                // A row of the box is contiguous in the plane (x fastest).
+                const size_t probe = layout.linearIndex(glm::uvec3(first.x, y, z));
+                std::memcpy(out, source + (p * probes + probe) * texel_bytes, row_bytes);
+                out += row_bytes;
+            }
+        }
+    }
+    return bytes;
+}
+
+Result<VkDescriptorSetLayout> createVolumeSetLayout(const GpuContext& context) {
+    std::array<VkDescriptorSetLayoutBinding, 4> bindings{};
+    bindings[0] = {PK_BINDING_VOLUMES, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_ALL,
+                   nullptr};
+    bindings[1] = {PK_BINDING_STATE_A, VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE, kPlaneElements,
+                   VK_SHADER_STAGE_ALL, nullptr};
+    bindings[2] = {PK_BINDING_STATE_B, VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE, kPlaneElements,
+                   VK_SHADER_STAGE_ALL, nullptr};
+    bindings[3] = {PK_BINDING_SAMPLER, VK_DESCRIPTOR_TYPE_SAMPLER, 1, VK_SHADER_STAGE_ALL, nullptr};
+    VkDescriptorSetLayoutCreateInfo info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+    info.bindingCount = uint32_t(bindings.size());
+    info.pBindings = bindings.data();
+    VkDescriptorSetLayout layout = VK_NULL_HANDLE;
+    PK_VK_TRY(vkCreateDescriptorSetLayout(context.device(), &info, nullptr, &layout));
+    return layout;
+}
+
+struct StateImages {
+    std::array<Image, PK_MAX_PLANES> planes{};
+    bool allocated = false;
+    bool initialised = false; // holds data (layout SHADER_READ_ONLY_OPTIMAL)
+};
+
+struct Slot {
+    VolumeDesc desc;
+    std::vector<uint8_t> validity;
+    StateImages states[2];
+    float blend = 0.0f;
+};
+
+struct GpuVolumeSet::Impl {
+    GpuContext* context = nullptr;
+    VkDescriptorSetLayout layout = VK_NULL_HANDLE;
+    VkDescriptorPool pool = VK_NULL_HANDLE;
+    VkDescriptorSet set = VK_NULL_HANDLE;
+    VkSampler sampler = VK_NULL_HANDLE;
+    Image dummy; // bound to every element no plane uses
+    Buffer uniforms;
+    Buffer staging; // reused and grown across uploads
+    std::vector<Slot> slots;
+    float normalOffset = 0.0f;
+    bool dirty = true;
+    size_t uploaded = 0;
+
+    ~Impl();
+    VkDevice device() const { return context->device(); }
+    gpu::PkVolumeSetGpu packUniforms() const;
+    Result<void> allocateState(const Slot& slot, StateImages& state);
+    Result<void> initDummy();
+    Result<void> writeDescriptors();
+    Result<void> upload(size_t index, VolumeState which, const Volume& source, glm::uvec3 first,
+                        glm::uvec3 count);
+    void recordUniforms(VkCommandBuffer cmd);
+};
+
+GpuVolumeSet::Impl::~Impl() {
+    if (context == nullptr) {
+        return;
+    }
+    const VkDevice d = device();
+    // Earlier submissions may still read the images.
+    vkQueueWaitIdle(context->queue());
+    for (Slot& slot : slots) {
+        for (StateImages& state : slot.states) {
+            for (Image& image : state.planes) {
+                detail::destroy(d, image);
+            }
+        }
+    }
+    detail::destroy(d, dummy);
+    detail::destroy(d, uniforms);
+    detail::destroy(d, staging);
+    if (sampler != VK_NULL_HANDLE) {
+        vkDestroySampler(d, sampler, nullptr);
+    }
+    if (pool != VK_NULL_HANDLE) {
+        vkDestroyDescriptorPool(d, pool, nullptr);
+    }
+    if (layout != VK_NULL_HANDLE) {
+        vkDestroyDescriptorSetLayout(d, layout, nullptr);
+    }
+}
+
+gpu::PkVolumeSetGpu GpuVolumeSet::Impl::packUniforms() const {
+    std::vector<VolumeDesc> descs;
+    std::vector<float> blends;
+    for (const Slot& slot : slots) {
+        descs.push_back(slot.desc);
+        blends.push_back(slot.states[1].allocated ? slot.blend : 0.0f);
+    }
+    return packVolumeSetGpu(descs, blends, normalOffset);
+}
+
+Result<void> GpuVolumeSet::Impl::allocateState(const Slot& slot, StateImages& state) {
+    const glm::uvec3 res = slot.desc.grid.resolution();
+    for (uint32_t p = 0; p < planeCount(slot.desc.shOrder); ++p) {
+        Result<Image> image = detail::createImage(
+            *context, VK_IMAGE_TYPE_3D, texelFormat(slot.desc.storage), {res.x, res.y, res.z},
+            VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
+            VK_IMAGE_ASPECT_COLOR_BIT);
+        if (!image) {
+            return image.error();
+        }
+        state.planes[p] = image.value();
+    }
+    state.allocated = true;
+    return {};
+}
+
+Result<void> GpuVolumeSet::Impl::initDummy() {
+    Result<Image> image = detail::createImage(
+        *context, VK_IMAGE_TYPE_3D, VK_FORMAT_R16G16B16A16_SFLOAT, {1, 1, 1},
+        VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT);
+    if (!image) {
+        return image.error();
+    }
+    dummy = image.value();
+    return context->submitAndWait([this](VkCommandBuffer cmd) {
+        const VkImageSubresourceRange range{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+        detail::imageBarrier(cmd, dummy.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                             VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                             VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, 0, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                             VK_ACCESS_TRANSFER_WRITE_BIT);
+        const VkClearColorValue zero{};
+        vkCmdClearColorImage(cmd, dummy.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &zero, 1,
+                             &range);
+        detail::imageBarrier(
+            cmd, dummy.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+            VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TRANSFER_BIT,
+            VK_ACCESS_TRANSFER_WRITE_BIT, kAnyStage, VK_ACCESS_SHADER_READ_BIT);
+    });
+}
+
+Result<void> GpuVolumeSet::Impl::writeDescriptors() {
+    std::vector<VkDescriptorImageInfo> images(2 * kPlaneElements);
+    for (uint32_t state = 0; state < 2; ++state) {
+        for (uint32_t s = 0; s < PK_MAX_VOLUMES; ++s) {
+            for (uint32_t p = 0; p < PK_MAX_PLANES; ++p) {
+                VkImageView view = dummy.view;
+                if (s < slots.size() && slots[s].states[state].allocated &&
+                    slots[s].states[state].planes[p].view != VK_NULL_HANDLE) {
+                    view = slots[s].states[state].planes[p].view;
+                }
+                images[state * kPlaneElements + s * PK_MAX_PLANES + p] = {
+                    VK_NULL_HANDLE, view, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+            }
+        }
+    }
+    const VkDescriptorBufferInfo buffer{uniforms.buffer, 0, sizeof(gpu::PkVolumeSetGpu)};
+    const VkDescriptorImageInfo sampler_info{sampler, VK_NULL_HANDLE, VK_IMAGE_LAYOUT_UNDEFINED};
+    std::array<VkWriteDescriptorSet, 4> writes{};
+    for (VkWriteDescriptorSet& w : writes) {
+        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+        w.dstSet = set;
+    }
+    writes[0].dstBinding = PK_BINDING_VOLUMES;
+    writes[0].descriptorCount = 1;
+    writes[0].descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+    writes[0].pBufferInfo = &buffer;
+    writes[1].dstBinding = PK_BINDING_STATE_A;
+    writes[1].descriptorCount = kPlaneElements;
+    writes[1].descriptorType = VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE;
+    writes[1].pImageInfo = images.data();
+    writes[2].dstBinding = PK_BINDING_STATE_B;
+    writes[2].descriptorCount = kPlaneElements;
+    writes[2].descriptorType = VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE;
+    writes[2].pImageInfo = images.data() + kPlaneElements;
+    writes[3].dstBinding = PK_BINDING_SAMPLER;
+    writes[3].descriptorCount = 1;
+    writes[3].descriptorType = VK_DESCRIPTOR_TYPE_SAMPLER;
+    writes[3].pImageInfo = &sampler_info;
+    vkUpdateDescriptorSets(device(), uint32_t(writes.size()), writes.data(), 0, nullptr);
+    return {};
+}
+
+void GpuVolumeSet::Impl::recordUniforms(VkCommandBuffer cmd) {
+    const gpu::PkVolumeSetGpu data = packUniforms();
+    VkBufferMemoryBarrier barrier{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER};
+    barrier.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    barrier.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    barrier.buffer = uniforms.buffer;
+    barrier.offset = 0;
+    barrier.size = VK_WHOLE_SIZE;
+    // Earlier reads finish before the write (write-after-read).
+    barrier.srcAccessMask = VK_ACCESS_UNIFORM_READ_BIT;
+    barrier.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    vkCmdPipelineBarrier(cmd, kAnyStage, VK_PIPELINE_STAGE_TRANSFER_BIT, 0, 0, nullptr, 1, &barrier,
+                         0, nullptr);
+    // The data is copied into the command buffer now: frames recorded later cannot change it.
+    vkCmdUpdateBuffer(cmd, uniforms.buffer, 0, sizeof(data), &data);
+    barrier.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    barrier.dstAccessMask = VK_ACCESS_UNIFORM_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, kAnyStage, 0, 0, nullptr, 1, &barrier,
+                         0, nullptr);
+    dirty = false;
+}
+
+Result<void> GpuVolumeSet::Impl::upload(size_t index, VolumeState which, const Volume& source,
+                                        glm::uvec3 first, glm::uvec3 count) {
+    Slot& slot = slots[index];
+    StateImages& state = slot.states[size_t(which)];
+    const bool whole = first == glm::uvec3(0u) && count == slot.desc.grid.resolution();
+    assert(state.initialised || whole);
+
+    const std::vector<uint8_t> bytes = packTexelBox(source, first, count);
+    if (staging.size < bytes.size()) {
+        detail::destroy(device(), staging);
+        Result<Buffer> buffer =
+            detail::createBuffer(*context, bytes.size(), VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
+        if (!buffer) {
+            return buffer.error();
+        }
+        staging = buffer.value();
+    }
+    std::memcpy(staging.mapped, bytes.data(), bytes.size());
+
+    const size_t plane_bytes = bytes.size() / source.planes();
+    // A whole replacement discards the old texels (UNDEFINED); a box keeps the rest of them.
+    const VkImageLayout old_layout =
+        whole ? VK_IMAGE_LAYOUT_UNDEFINED : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+    PK_TRY(context->submitAndWait([&](VkCommandBuffer cmd) {
+        for (uint32_t p = 0; p < source.planes(); ++p) {
+            const Image& image = state.planes[p];
+            // Waits for every shader read submitted earlier (write-after-read), then copies.
+            detail::imageBarrier(cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT, old_layout,
+                                 VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, kAnyStage, 0,
+                                 VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
+            VkBufferImageCopy region{};
+            region.bufferOffset = p * plane_bytes;
+            region.bufferRowLength = 0; // tightly packed box
+            region.bufferImageHeight = 0;
+            region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+            region.imageOffset = {int32_t(first.x), int32_t(first.y), int32_t(first.z)};
+            region.imageExtent = {count.x, count.y, count.z};
+            vkCmdCopyBufferToImage(cmd, staging.buffer, image.image,
+                                   VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
+            detail::imageBarrier(
+                cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                VK_ACCESS_TRANSFER_WRITE_BIT, kAnyStage, VK_ACCESS_SHADER_READ_BIT);
+        }
+        // A replaced primary state may bring a new box, frame, fade or priority.
+        if (dirty) {
+            recordUniforms(cmd);
+        }
+    }));
+    state.initialised = true;
+    uploaded += bytes.size();
+    return {};
+}
+
+GpuVolumeSet::GpuVolumeSet(std::unique_ptr<Impl> impl) : m_impl(std::move(impl)) {}
+GpuVolumeSet::GpuVolumeSet(GpuVolumeSet&&) noexcept = default;
+GpuVolumeSet& GpuVolumeSet::operator=(GpuVolumeSet&&) noexcept = default;
+GpuVolumeSet::~GpuVolumeSet() = default;
+
+Result<GpuVolumeSet> GpuVolumeSet::create(GpuContext& context, std::span<const Volume> volumes) {
+    if (volumes.empty() || volumes.size() > kMaxGpuVolumes) {
+        return makeError(ErrorCode::OutOfRange,
+                         "a GPU volume set holds 1.." + std::to_string(kMaxGpuVolumes) +
+                             " volumes, not " + std::to_string(volumes.size()));
+    }
+    for (size_t i = 0; i < volumes.size(); ++i) {
+        if (Result<void> valid = validateVolume(volumes[i]); !valid) {
+            return makeError(valid.error().code,
+                             slotName(i, volumes[i].desc) + ": " + valid.error().message);
+        }
+    }
+    auto impl = std::make_unique<Impl>();
+    impl->context = &context;
+    const VkDevice device = context.device();
+
+    Result<VkDescriptorSetLayout> layout = createVolumeSetLayout(context);
+    if (!layout) {
+        return layout.error();
+    }
+    impl->layout = layout.value();
+    const VkDescriptorPoolSize sizes[] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1},
+                                          {VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE, 2 * kPlaneElements},
+                                          {VK_DESCRIPTOR_TYPE_SAMPLER, 1}};
+    VkDescriptorPoolCreateInfo pool{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+    pool.maxSets = 1;
+    pool.poolSizeCount = 3;
+    pool.pPoolSizes = sizes;
+    PK_VK_TRY(vkCreateDescriptorPool(device, &pool, nullptr, &impl->pool));
+    VkDescriptorSetAllocateInfo allocate{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+    allocate.descriptorPool = impl->pool;
+    allocate.descriptorSetCount = 1;
+    allocate.pSetLayouts = &impl->layout;
+    PK_VK_TRY(vkAllocateDescriptorSets(device, &allocate, &impl->set));
+
+    // Linear filtering + clamp-to-edge + LOD 0 only: the CPU sampler's clamp and trilinear.
+    VkSamplerCreateInfo sampler{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
+    sampler.magFilter = VK_FILTER_LINEAR;
+    sampler.minFilter = VK_FILTER_LINEAR;
+    sampler.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
+    sampler.addressModeU = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
+    sampler.addressModeV = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
+    sampler.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
+    sampler.minLod = 0.0f;
+    sampler.maxLod = 0.0f;
+    PK_VK_TRY(vkCreateSampler(device, &sampler, nullptr, &impl->sampler));
+
+    Result<Buffer> uniforms = detail::createBuffer(
+        context, sizeof(gpu::PkVolumeSetGpu),
+        VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
+    if (!uniforms) {
+        return uniforms.error();
+    }
+    impl->uniforms = uniforms.value();
+    PK_TRY(impl->initDummy());
+
+    for (const Volume& volume : volumes) {
+        Slot slot;
+        slot.desc = volume.desc;
+        slot.validity = volume.validity;
+        impl->slots.push_back(std::move(slot));
+        PK_TRY(impl->allocateState(impl->slots.back(), impl->slots.back().states[0]));
+    }
+    PK_TRY(impl->writeDescriptors());
+    for (size_t i = 0; i < volumes.size(); ++i) {
+        PK_TRY(impl->upload(i, VolumeState::Primary, volumes[i], glm::uvec3(0u),
+                            volumes[i].desc.grid.resolution()));
+    }
+    return GpuVolumeSet(std::move(impl));
+}
+
+size_t GpuVolumeSet::size() const {
+    return m_impl->slots.size();
+}
+
+const VolumeDesc& GpuVolumeSet::desc(size_t index) const {
+    assert(index < size());
+    return m_impl->slots[index].desc;
+}
+
+const std::vector<uint8_t>& GpuVolumeSet::validity(size_t index) const {
+    assert(index < size());
+    return m_impl->slots[index].validity;
+}
+
+bool GpuVolumeSet::hasSecondState(size_t index) const {
+    assert(index < size());
+    return m_impl->slots[index].states[1].allocated;
+}
+
+float GpuVolumeSet::stateBlend(size_t index) const {
+    assert(index < size());
+    return m_impl->slots[index].blend;
+}
+
+float GpuVolumeSet::normalOffset() const {
+    return m_impl->normalOffset;
+}
+
+size_t GpuVolumeSet::texelBytes() const {
+    size_t bytes = 0;
+    for (const Slot& slot : m_impl->slots) {
+        const size_t one = size_t(planeCount(slot.desc.shOrder)) * slot.desc.grid.probeCount() *
+                           texelSize(slot.desc.storage);
+        bytes += slot.states[1].allocated ? 2 * one : one;
+    }
+    return bytes;
+}
+
+size_t GpuVolumeSet::uploadedBytes() const {
+    return m_impl->uploaded;
+}
+
+VkDescriptorSetLayout GpuVolumeSet::descriptorSetLayout() const {
+    return m_impl->layout;
+}
+
+VkDescriptorSet GpuVolumeSet::descriptorSet() const {
+    return m_impl->set;
+}
+
+Result<void> GpuVolumeSet::replaceVolume(size_t index, const Volume& volume, VolumeState state) {
+    assert(index < size());
+    Slot& slot = m_impl->slots[index];
+    const std::string where = slotName(index, slot.desc);
+    if (Result<void> valid = validateVolume(volume); !valid) {
+        return makeError(valid.error().code, where + ": " + valid.error().message);
+    }
+    if (std::string mismatch = layoutMismatch(slot.desc, volume.desc); !mismatch.empty()) {
+        return makeError(ErrorCode::InvalidArgument, where + ": replacement " + mismatch);
+    }
+    if (state == VolumeState::Secondary) {
+        const grid::Aabb& a = slot.desc.grid.bounds();
+        const grid::Aabb& b = volume.desc.grid.bounds();
+        if (a.min != b.min || a.max != b.max) {
+            return makeError(ErrorCode::InvalidArgument,
+                             where + ": a second state must have the volume's bounds");
+        }
+        StateImages& images = slot.states[1];
+        if (!images.allocated) {
+            PK_TRY(m_impl->allocateState(slot, images));
+            // The set may be bound by work still in flight; rewrite it only once that is done.
+            PK_TRY(m_impl->context->waitIdle());
+            PK_TRY(m_impl->writeDescriptors());
+            m_impl->dirty = true;
+        }
+    } else {
+        slot.desc = volume.desc;
+        slot.validity = volume.validity;
+        m_impl->dirty = true;
+    }
+    return m_impl->upload(index, state, volume, glm::uvec3(0u), volume.desc.grid.resolution());
+}
+
+Result<void> GpuVolumeSet::updateBox(size_t index, const Volume& source, glm::uvec3 first,
+                                     glm::uvec3 count, VolumeState state) {
+    assert(index < size());
+    Slot& slot = m_impl->slots[index];
+    const std::string where = slotName(index, slot.desc);
+    if (Result<void> valid = validateVolume(source); !valid) {
+        return makeError(valid.error().code, where + ": " + valid.error().message);
+    }
+    if (std::string mismatch = layoutMismatch(slot.desc, source.desc); !mismatch.empty()) {
+        return makeError(ErrorCode::InvalidArgument, where + ": box source " + mismatch);
+    }
+    const glm::uvec3 res = slot.desc.grid.resolution();
+    static constexpr const char* kAxes[3] = {"x", "y", "z"};
+    for (int axis = 0; axis < 3; ++axis) {
+        // Written so that first + count cannot overflow.
+        if (count[axis] == 0 || first[axis] >= res[axis] || count[axis] > res[axis] - first[axis]) {
+            return makeError(ErrorCode::OutOfRange,
+                             where + ": box " + kAxes[axis] + " [" + std::to_string(first[axis]) +
+                                 ", +" + std::to_string(count[axis]) +
+                                 ") is empty or leaves the grid (resolution " +
+                                 std::to_string(res[axis]) + ")");
+        }
+    }
+    if (!slot.states[size_t(state)].initialised) {
+        return makeError(ErrorCode::InvalidArgument,
+                         where + ": no second state to update (upload one with replaceVolume)");
+    }
+    if (state == VolumeState::Primary) {
+        for (uint32_t z = first.z; z < first.z + count.z; ++z) {
+            for (uint32_t y = first.y; y < first.y + count.y; ++y) {
+                for (uint32_t x = first.x; x < first.x + count.x; ++x) {
+                    const size_t probe = slot.desc.grid.linearIndex(glm::uvec3(x, y, z));
+                    slot.validity[probe] = source.validity[probe];
+                }
+            }
+        }
+    }
+    return m_impl->upload(index, state, source, first, count);
+}
+
+Result<void> GpuVolumeSet::setFrame(size_t index, const grid::RigidFrame& frame) {
+    assert(index < size());
+    Slot& slot = m_impl->slots[index];
+    const grid::GridLayout& layout = slot.desc.grid;
+    Result<grid::GridLayout> moved =
+        grid::GridLayout::make(layout.bounds(), layout.resolution(), layout.mode(), frame);
+    if (!moved) {
+        return makeError(moved.error().code,
+                         slotName(index, slot.desc) + ": " + moved.error().message);
+    }
+    slot.desc.grid = moved.value();
+    m_impl->dirty = true;
+    return {};
+}
+
+void GpuVolumeSet::setStateBlend(size_t index, float blend) {
+    assert(index < size());
+    assert(blend == 0.0f || hasSecondState(index));
+    m_impl->slots[index].blend = std::isnan(blend) ? 0.0f : std::clamp(blend, 0.0f, 1.0f);
+    m_impl->dirty = true;
+}
+
+void GpuVolumeSet::setNormalOffset(float metres) {
+    m_impl->normalOffset = metres;
+    m_impl->dirty = true;
+}
+
+void GpuVolumeSet::recordUniformUpdate(VkCommandBuffer cmd) {
+    if (m_impl->dirty) {
+        m_impl->recordUniforms(cmd);
+    }
+}
+
+} // namespace probekit::runtime

@@ -1,0 +1,81 @@
+// probekit GPU layout of a probe-volume set, shared by C++ (probekit/runtime/gpu_volumes.hpp) and
+// GLSL (shaders/probe_volume.glsl). One definition, so the two can never drift: C++ checks every
+// size and offset below with static_assert; GLSL reads the same structs as a std140 uniform
+// block. Every member is a vec4/uvec4 (16-byte rows, marked with their byte offsets), so std140
+// adds no padding and C++ needs no alignment attributes.
+//
+// Units: metres, glTF world frame (formats/CONVENTIONS.md).
+#ifndef PROBEKIT_PROBE_VOLUME_LAYOUT_H
+#define PROBEKIT_PROBE_VOLUME_LAYOUT_H
+
+#ifdef __cplusplus
+#include <cstddef>
+#include <cstdint>
+
+#include <glm/vec4.hpp>
+
+namespace probekit::gpu {
+using vec4 = glm::vec4;
+using uvec4 = glm::uvec4;
+#endif
+
+// Volumes one set can hold; pk_irradiance blends all of them. 8 volumes x 7 planes x 2 states
+// = 112 sampled images, within lavapipe's 128 per shader stage (Vulkan's portable minimum is
+// far lower; desktop drivers allow thousands).
+#define PK_MAX_VOLUMES 8
+// Texel planes per volume state: 3 for L1, 7 for L2 (formats/.../volume.hpp).
+#define PK_MAX_PLANES 7
+
+// Descriptor bindings of the volume set (descriptor set PK_VOLUME_SET in GLSL).
+#define PK_BINDING_VOLUMES 0  // uniform buffer: PkVolumeSetGpu
+#define PK_BINDING_STATE_A 1  // texture3D[PK_MAX_VOLUMES * PK_MAX_PLANES]: element 7 slot + plane
+#define PK_BINDING_STATE_B 2  // the same for the second state of each volume
+#define PK_BINDING_SAMPLER 3  // sampler: linear filtering, clamp-to-edge, no mipmaps
+
+// PkVolumeGpu.resolution.w flags.
+#define PK_VOLUME_FLAG_L2 1u    // 7 planes (L2) rather than 3 (L1)
+#define PK_VOLUME_FLAG_BLEND 2u // mix state A and state B by boxMax.w
+
+// One volume. World -> local is the inverse of the volume's rigid frame:
+// local = R^T (world - t), with the rows of R^T in xyz and t in w.
+struct PkVolumeGpu {
+    vec4 worldToLocal0; // bytes   0..15: row 0 of R^T; w = t.x (m)
+    vec4 worldToLocal1; // bytes  16..31: row 1 of R^T; w = t.y (m)
+    vec4 worldToLocal2; // bytes  32..47: row 2 of R^T; w = t.z (m)
+    vec4 boxMin;        // bytes  48..63: local box min (m); w = fade distance (m, 0 = hard)
+    vec4 boxMax;        // bytes  64..79: local box max (m); w = state blend factor in [0, 1]
+    vec4 spacing;       // bytes  80..95: probe spacing per axis (m); w = grid offset (0.5
+                        //                center mode, 0 corner mode)
+    uvec4 resolution;   // bytes 96..111: probes per axis; w = PK_VOLUME_FLAG_* bits
+};
+
+// The whole set: one uniform buffer.
+struct PkVolumeSetGpu {
+    uvec4 header;                        // bytes  0..15: x = volume count; yzw zero
+    vec4 params;                         // bytes 16..31: x = normal offset (m); yzw zero
+    uvec4 order[PK_MAX_VOLUMES / 4];     // bytes 32..63: blending order, slot of the i-th
+                                         //   volume at order[i / 4][i % 4] (descending
+                                         //   priority, ties in set order)
+    PkVolumeGpu volumes[PK_MAX_VOLUMES]; // bytes 64..959: by slot (= index in the set)
+};
+
+#ifdef __cplusplus
+static_assert(sizeof(vec4) == 16 && sizeof(uvec4) == 16, "GLM vectors must be tightly packed");
+static_assert(offsetof(PkVolumeGpu, worldToLocal0) == 0);
+static_assert(offsetof(PkVolumeGpu, worldToLocal1) == 16);
+static_assert(offsetof(PkVolumeGpu, worldToLocal2) == 32);
+static_assert(offsetof(PkVolumeGpu, boxMin) == 48);
+static_assert(offsetof(PkVolumeGpu, boxMax) == 64);
+static_assert(offsetof(PkVolumeGpu, spacing) == 80);
+static_assert(offsetof(PkVolumeGpu, resolution) == 96);
+static_assert(sizeof(PkVolumeGpu) == 112, "std140 array stride of PkVolumeGpu");
+static_assert(offsetof(PkVolumeSetGpu, header) == 0);
+static_assert(offsetof(PkVolumeSetGpu, params) == 16);
+static_assert(offsetof(PkVolumeSetGpu, order) == 32);
+static_assert(offsetof(PkVolumeSetGpu, volumes) == 64);
+static_assert(sizeof(PkVolumeSetGpu) == 64 + 112 * PK_MAX_VOLUMES);
+static_assert(PK_MAX_VOLUMES % 4 == 0, "order[] packs four slots per uvec4");
+} // namespace probekit::gpu
+#endif
+
+#endif

@@ -1,0 +1,75 @@
+// probekit headless renderer: GPU layout of its frame uniforms and G-buffer encoding, shared by
+// C++ (runtime/src/renderer.cpp) and GLSL (gbuffer.*, probe_sphere.vert, shade.comp). As in
+// probe_volume_layout.h, every member is a 16-byte row so std140 adds no padding, and C++
+// static_asserts every offset.
+//
+// Units: metres, glTF world frame; light intensities as formats/CONVENTIONS.md states (point
+// and spot: W/sr, directional: W/m^2).
+#ifndef PROBEKIT_RENDER_LAYOUT_H
+#define PROBEKIT_RENDER_LAYOUT_H
+
+#ifdef __cplusplus
+#include <cstddef>
+#include <cstdint>
+
+#include <glm/mat4x4.hpp>
+#include <glm/vec4.hpp>
+
+namespace probekit::gpu {
+using mat4 = glm::mat4;
+using vec4 = glm::vec4;
+using uvec4 = glm::uvec4;
+#endif
+
+#define PK_MAX_LIGHTS 8
+
+// PkFrameGpu.info.x: what the shading pass writes.
+#define PK_VIEW_SHADED 0u     // albedo / pi x (E + direct), W/(sr m^2)
+#define PK_VIEW_IRRADIANCE 1u // E, W/m^2
+#define PK_VIEW_PROBES 2u     // surfaces shaded, probe spheres lit by their own SH
+#define PK_VIEW_VALIDITY 3u   // probe spheres only: valid ones lit by their SH, invalid ones red
+
+// PkLightGpu.info.x.
+#define PK_LIGHT_POINT 0u
+#define PK_LIGHT_SPOT 1u
+#define PK_LIGHT_DIRECTIONAL 2u
+
+// The G-buffer id attachment (R32_UINT): bits 0..1 kind, bit 2 probe validity, bits 3..5 volume
+// slot, bits 8..31 probe grid coordinates x | y << 8 | z << 16 (each < 256).
+#define PK_KIND_NONE 0u
+#define PK_KIND_SURFACE 1u
+#define PK_KIND_PROBE 2u
+
+struct PkLightGpu {
+    vec4 position;  // bytes  0..15: xyz position (m); w = range (m, 0 = infinite)
+    vec4 direction; // bytes 16..31: xyz unit direction the light travels; w = cos(inner cone)
+    vec4 intensity; // bytes 32..47: rgb W/sr (point, spot) or W/m^2 (directional); w = cos(outer)
+    uvec4 info;     // bytes 48..63: x = PK_LIGHT_*; yzw zero
+};
+
+struct PkFrameGpu {
+    mat4 viewProjection;                // bytes   0..63: world -> clip (Vulkan clip space)
+    vec4 eye;                           // bytes  64..79: camera position (m); w = 1
+    uvec4 info;                         // bytes  80..95: x = PK_VIEW_*, y = light count,
+                                        //   z = add direct light (0/1), w = 0
+    uvec4 size;                         // bytes 96..111: x = width, y = height (pixels)
+    PkLightGpu lights[PK_MAX_LIGHTS];   // bytes 112..623
+};
+
+#ifdef __cplusplus
+static_assert(sizeof(mat4) == 64, "GLM matrices must be tightly packed (column-major)");
+static_assert(offsetof(PkLightGpu, position) == 0);
+static_assert(offsetof(PkLightGpu, direction) == 16);
+static_assert(offsetof(PkLightGpu, intensity) == 32);
+static_assert(offsetof(PkLightGpu, info) == 48);
+static_assert(sizeof(PkLightGpu) == 64);
+static_assert(offsetof(PkFrameGpu, viewProjection) == 0);
+static_assert(offsetof(PkFrameGpu, eye) == 64);
+static_assert(offsetof(PkFrameGpu, info) == 80);
+static_assert(offsetof(PkFrameGpu, size) == 96);
+static_assert(offsetof(PkFrameGpu, lights) == 112);
+static_assert(sizeof(PkFrameGpu) == 112 + 64 * PK_MAX_LIGHTS);
+} // namespace probekit::gpu
+#endif
+
+#endif

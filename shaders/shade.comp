@@ -1,0 +1,99 @@
+#version 450
+// Shading pass: per pixel, pk_irradiance at the G-buffer position and normal, then the view's
+// output (render_layout.h). Compiled twice: as is, and with PK_FETCH_ONLY (the benchmark floor:
+// pk_irradiance's texture fetches alone).
+#extension GL_GOOGLE_include_directive : require
+#define PK_VOLUME_SET 0
+#include "probe_volume.glsl"
+#include "render_layout.h"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+layout(std140, set = 1, binding = 0) uniform PkFrameBlock {
+    PkFrameGpu pk_frame;
+};
+layout(set = 1, binding = 1, rgba32f) uniform readonly image2D g_position;
+layout(set = 1, binding = 2, rgba32f) uniform readonly image2D g_normal;
+layout(set = 1, binding = 3, rgba16f) uniform readonly image2D g_albedo;
+layout(set = 1, binding = 4, r32ui) uniform readonly uimage2D g_id;
+layout(set = 1, binding = 5, rgba32f) uniform writeonly image2D out_color;
+
+// Unshadowed irradiance from the frame's punctual lights on a surface at p with normal n. The
+// light term mirrors probekit::baker::PunctualLight::irradianceAt (baker/src/scene.cpp): I / d^2,
+// KHR_lights_punctual's range window, the glTF spot cone ramp; times max(0, n . l).
+vec3 pk_direct_irradiance(vec3 p, vec3 n) {
+    vec3 e = vec3(0.0);
+    for (uint i = 0u; i < pk_frame.info.y; ++i) {
+        const PkLightGpu light = pk_frame.lights[i];
+        if (light.info.x == PK_LIGHT_DIRECTIONAL) {
+            e += light.intensity.rgb * max(dot(n, -light.direction.xyz), 0.0);
+            continue;
+        }
+        const vec3 to_point = p - light.position.xyz;
+        const float d2 = dot(to_point, to_point);
+        if (d2 <= 0.0) {
+            continue;
+        }
+        float attenuation = 1.0 / d2;
+        const float range = light.position.w;
+        if (range > 0.0) {
+            const float r = d2 / (range * range);
+            const float window = clamp(1.0 - r * r, 0.0, 1.0);
+            attenuation *= window * window;
+        }
+        const vec3 l = -to_point / sqrt(d2);
+        if (light.info.x == PK_LIGHT_SPOT) {
+            const float cos_angle = dot(light.direction.xyz, -l);
+            const float scale = 1.0 / max(0.001, light.direction.w - light.intensity.w);
+            const float t = clamp((cos_angle - light.intensity.w) * scale, 0.0, 1.0);
+            attenuation *= t * t;
+        }
+        e += light.intensity.rgb * attenuation * max(dot(n, l), 0.0);
+    }
+    return e;
+}
+
+void main() {
+    const ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    if (any(greaterThanEqual(uvec2(px), pk_frame.size.xy))) {
+        return;
+    }
+    const uint id = imageLoad(g_id, px).x;
+    const uint kind = id & 3u;
+    if (kind == PK_KIND_NONE) {
+        imageStore(out_color, px, vec4(0.0));
+        return;
+    }
+    const vec3 position = imageLoad(g_position, px).xyz;
+    const vec3 n = normalize(imageLoad(g_normal, px).xyz);
+#ifdef PK_FETCH_ONLY
+    imageStore(out_color, px, pk_fetch_only(position, n));
+#else
+    const uint view = pk_frame.info.x;
+    vec3 color;
+    if (kind == PK_KIND_PROBE) {
+        const bool valid = ((id >> 2u) & 1u) != 0u;
+        const uint slot = (id >> 3u) & 7u;
+        const uvec3 probe = uvec3((id >> 8u) & 255u, (id >> 16u) & 255u, id >> 24u);
+        if (view == PK_VIEW_VALIDITY && !valid) {
+            // Flat red with a little view-dependent shading so spheres still read as spheres.
+            const float facing = max(dot(n, normalize(pk_frame.eye.xyz - position)), 0.0);
+            color = vec3(1.0, 0.05, 0.05) * (0.3 + 0.7 * facing);
+        } else {
+            // A white Lambertian sphere lit by the probe's own SH: radiance E / pi.
+            color = pk_probe_irradiance(slot, probe, n) / PK_PI;
+        }
+    } else {
+        vec3 e = pk_irradiance(position, n);
+        if (view == PK_VIEW_IRRADIANCE) {
+            color = e;
+        } else {
+            if (pk_frame.info.z != 0u) {
+                e += pk_direct_irradiance(position, n);
+            }
+            color = imageLoad(g_albedo, px).rgb / PK_PI * e;
+        }
+    }
+    imageStore(out_color, px, vec4(color, 1.0));
+#endif
+}

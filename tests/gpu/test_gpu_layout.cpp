@@ -1,0 +1,169 @@
+// CPU-only tests of the GPU layout shared by C++ and GLSL (shaders/probe_volume_layout.h,
+// shaders/render_layout.h) and of the packing that fills it (runtime/.../gpu_volumes.hpp). No
+// Vulkan device needed: label unit.
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include <glm/geometric.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <gtest/gtest.h>
+
+#include "probe_volume_layout.h"
+#include "probekit/runtime/gpu_volumes.hpp"
+#include "probekit/runtime/sampler.hpp"
+#include "render_layout.h"
+
+using namespace probekit;
+
+namespace {
+
+// A rotation matrix and a quaternion rotate the same vector to within a few float ulps of
+// coordinates of magnitude ~10.
+constexpr float kTransformTolerance = 1e-5f;
+
+Volume makeVolume(glm::uvec3 resolution, grid::PositionMode mode, sh::Order order, Storage storage,
+                  grid::RigidFrame frame, int32_t priority, float fade) {
+    VolumeDesc desc;
+    desc.name = "layout";
+    desc.grid = grid::GridLayout({glm::vec3(-1.0f, 0.5f, -3.0f), glm::vec3(3.0f, 2.5f, 5.0f)},
+                                 resolution, mode, frame);
+    desc.shOrder = order;
+    desc.storage = storage;
+    desc.blendPriority = priority;
+    desc.fadeDistance = fade;
+    std::vector<sh::ShRgb> probes(desc.grid.probeCount());
+    for (size_t i = 0; i < probes.size(); ++i) {
+        for (int k = 0; k < sh::coefficientCount(order); ++k) {
+            probes[i].rgb[size_t(k)] = glm::vec3(float(i), float(k), float(i % 7)) * 0.125f;
+        }
+    }
+    Result<Volume> v = probekit::makeVolume(desc, probes);
+    EXPECT_TRUE(v.ok());
+    return std::move(v).value();
+}
+
+// What pk_to_local and pk_volume_uvw compute from the packed rows (written out here so the
+// packing can be checked against grid::GridLayout without a GPU).
+glm::vec3 packedToLocal(const gpu::PkVolumeGpu& v, glm::vec3 world) {
+    const glm::vec3 d = world - glm::vec3(v.worldToLocal0.w, v.worldToLocal1.w, v.worldToLocal2.w);
+    return {glm::dot(glm::vec3(v.worldToLocal0), d), glm::dot(glm::vec3(v.worldToLocal1), d),
+            glm::dot(glm::vec3(v.worldToLocal2), d)};
+}
+
+glm::vec3 packedGrid(const gpu::PkVolumeGpu& v, glm::vec3 local) {
+    return (local - glm::vec3(v.boxMin)) / glm::vec3(v.spacing) - v.spacing.w;
+}
+
+TEST(GpuLayout, SizesAndOffsetsMatchStd140) {
+    // The static_asserts in the headers are the real check; these keep the figures visible.
+    EXPECT_EQ(sizeof(gpu::PkVolumeGpu), 112u);
+    EXPECT_EQ(sizeof(gpu::PkVolumeSetGpu), 64u + 112u * PK_MAX_VOLUMES);
+    EXPECT_EQ(offsetof(gpu::PkVolumeSetGpu, volumes) % 16, 0u);
+    EXPECT_EQ(sizeof(gpu::PkFrameGpu), 112u + 64u * PK_MAX_LIGHTS);
+    // A uniform buffer update with vkCmdUpdateBuffer is limited to 65536 bytes.
+    EXPECT_LE(sizeof(gpu::PkVolumeSetGpu), 65536u);
+    EXPECT_EQ(runtime::kMaxGpuVolumes, size_t(PK_MAX_VOLUMES));
+}
+
+TEST(GpuLayout, PackedTransformMatchesGridLayout) {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(-6.0f, 6.0f);
+    for (grid::PositionMode mode : {grid::PositionMode::Center, grid::PositionMode::Corner}) {
+        grid::RigidFrame frame;
+        frame.rotation = glm::angleAxis(0.7f, glm::normalize(glm::vec3(1.0f, -2.0f, 0.5f)));
+        frame.translation = glm::vec3(0.5f, -1.25f, 2.0f);
+        const Volume v =
+            makeVolume({8, 4, 16}, mode, sh::Order::L2, Storage::Float16, frame, 3, 0.25f);
+        const gpu::PkVolumeGpu packed = runtime::packVolumeGpu(v.desc, 0.0f);
+        for (int i = 0; i < 1000; ++i) {
+            const glm::vec3 world(u(rng), u(rng), u(rng));
+            const glm::vec3 local = packedToLocal(packed, world);
+            const glm::vec3 expected_local = v.desc.grid.frame().toLocal(world);
+            const glm::vec3 grid_coords = packedGrid(packed, local);
+            const glm::vec3 expected_grid = v.desc.grid.worldToGrid(world);
+            for (int c = 0; c < 3; ++c) {
+                EXPECT_NEAR(local[c], expected_local[c], kTransformTolerance);
+                EXPECT_NEAR(grid_coords[c], expected_grid[c], kTransformTolerance * 16.0f);
+            }
+        }
+        EXPECT_EQ(packed.boxMin.w, 0.25f);
+        EXPECT_EQ(packed.boxMax.w, 0.0f);
+        EXPECT_EQ(glm::uvec3(packed.resolution), glm::uvec3(8, 4, 16));
+        EXPECT_EQ(packed.resolution.w, PK_VOLUME_FLAG_L2);
+    }
+}
+
+TEST(GpuLayout, FlagsFollowOrderAndBlend) {
+    const Volume l1 = makeVolume({2, 2, 2}, grid::PositionMode::Center, sh::Order::L1,
+                                 Storage::Float32, {}, 0, 0.0f);
+    EXPECT_EQ(runtime::packVolumeGpu(l1.desc, 0.0f).resolution.w, 0u);
+    const gpu::PkVolumeGpu blended = runtime::packVolumeGpu(l1.desc, 0.5f);
+    EXPECT_EQ(blended.resolution.w, PK_VOLUME_FLAG_BLEND);
+    EXPECT_EQ(blended.boxMax.w, 0.5f);
+}
+
+TEST(GpuLayout, BlendOrderIsTheCpuSamplersOrder) {
+    std::vector<VolumeDesc> descs;
+    const int32_t priorities[] = {0, 3, 1, 3, -2, 1};
+    for (int32_t p : priorities) {
+        descs.push_back(makeVolume({2, 2, 2}, grid::PositionMode::Center, sh::Order::L1,
+                                   Storage::Float32, {}, p, 0.0f)
+                            .desc);
+    }
+    // Descending priority, ties in set order (VolumeSet's stable sort).
+    EXPECT_EQ(runtime::blendOrder(descs), (std::vector<uint32_t>{1, 3, 2, 5, 0, 4}));
+    const std::vector<float> blends(descs.size(), 0.0f);
+    const gpu::PkVolumeSetGpu set = runtime::packVolumeSetGpu(descs, blends, 0.125f);
+    EXPECT_EQ(set.header.x, 6u);
+    EXPECT_EQ(set.params.x, 0.125f);
+    const uint32_t expected[] = {1, 3, 2, 5, 0, 4};
+    for (size_t i = 0; i < 6; ++i) {
+        EXPECT_EQ(set.order[i / 4][int(i % 4)], expected[i]) << "position " << i;
+    }
+}
+
+TEST(GpuLayout, TexelBoxIsPlaneMajorXFastest) {
+    for (Storage storage : {Storage::Float32, Storage::Float16}) {
+        const Volume v =
+            makeVolume({4, 2, 8}, grid::PositionMode::Center, sh::Order::L2, storage, {}, 0, 0.0f);
+        const glm::uvec3 first(1, 0, 2);
+        const glm::uvec3 count(2, 2, 3);
+        const std::vector<uint8_t> bytes = runtime::packTexelBox(v, first, count);
+        const size_t texel = 4 * bytesPerComponent(storage);
+        ASSERT_EQ(bytes.size(), size_t(v.planes()) * 12 * texel);
+        const auto* source = storage == Storage::Float32
+                                 ? reinterpret_cast<const uint8_t*>(v.texelsF32.data())
+                                 : reinterpret_cast<const uint8_t*>(v.texelsF16.data());
+        size_t at = 0;
+        for (uint32_t p = 0; p < v.planes(); ++p) {
+            for (uint32_t z = 0; z < count.z; ++z) {
+                for (uint32_t y = 0; y < count.y; ++y) {
+                    for (uint32_t x = 0; x < count.x; ++x) {
+                        const size_t probe = v.desc.grid.linearIndex(first + glm::uvec3(x, y, z));
+                        EXPECT_EQ(std::memcmp(bytes.data() + at,
+                                              source + (p * v.probeCount() + probe) * texel, texel),
+                                  0);
+                        at += texel;
+                    }
+                }
+            }
+        }
+        // The whole grid is the volume's own texel array.
+        const std::vector<uint8_t> all = runtime::packTexelBox(v, glm::uvec3(0), {4, 2, 8});
+        ASSERT_EQ(all.size(), v.texelBytes());
+        EXPECT_EQ(std::memcmp(all.data(), source, all.size()), 0);
+    }
+}
+
+TEST(GpuLayout, CpuNormalOffsetIsTheOffsetPoint) {
+    const Volume v = makeVolume({4, 4, 4}, grid::PositionMode::Center, sh::Order::L2,
+                                Storage::Float32, {}, 0, 0.0f);
+    const runtime::VolumeSet set({v});
+    const glm::vec3 p(0.3f, 1.1f, 0.7f);
+    const glm::vec3 n = glm::normalize(glm::vec3(0.2f, 1.0f, -0.3f));
+    EXPECT_EQ(set.irradiance(p, n, 0.0f), set.irradiance(p, n));
+    EXPECT_EQ(set.irradiance(p, n, 0.25f), set.irradiance(p + 0.25f * n, n));
+}
+
+} // namespace
