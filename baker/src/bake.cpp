@@ -1,8 +1,11 @@
 // The bake: volume placement, the probe loop on a thread pool, validity and dilation.
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <chrono>
 #include <cmath>
+#include <numbers>
+#include <optional>
 #include <thread>
 
 #include <sys/resource.h>
@@ -13,6 +16,8 @@
 #include "path_integrator.hpp"
 #include "probekit/baker/bake.hpp"
 #include "ray_tracer.hpp"
+#include "vpl_gather.hpp"
+#include "vpl_paths.hpp"
 
 namespace probekit::baker {
 namespace {
@@ -244,6 +249,37 @@ Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeCon
     return out;
 }
 
+VplConfig resolveVplConfig(const Scene& scene, const std::vector<VolumeDesc>& volumes,
+                           const BakeConfig& config) {
+    VplConfig v = config.vpl;
+    double area = 0.0;
+    for (const glm::uvec3& t : scene.triangles) {
+        const glm::vec3 p0 = scene.positions[t.x];
+        area +=
+            0.5 *
+            double(glm::length(glm::cross(scene.positions[t.y] - p0, scene.positions[t.z] - p0)));
+    }
+    if (!v.count) {
+        // VPL spacing sqrt(area / count) at most half the smallest probe spacing h:
+        // count >= 4 area / h^2.
+        double spacing = INFINITY;
+        for (const VolumeDesc& d : volumes) {
+            const glm::vec3 s = d.grid.spacing();
+            spacing = std::min(spacing, double(std::min({s.x, s.y, s.z})));
+        }
+        const double wanted = spacing > 0.0 ? 4.0 * area / (spacing * spacing) : 0.0;
+        const double clamped = std::clamp(std::isfinite(wanted) ? wanted : 0.0,
+                                          double(kMinDefaultVplCount), double(kMaxDefaultVplCount));
+        v.count = std::bit_ceil(uint32_t(std::ceil(clamped)));
+    }
+    if (!v.clampDistance) {
+        // Twice the radius of the disc of surface each VPL stands for: the clamp shrinks (and
+        // its bias vanishes) as the count grows.
+        v.clampDistance = float(2.0 * std::sqrt(area / (std::numbers::pi * double(*v.count))));
+    }
+    return v;
+}
+
 uint64_t estimateBakeMemory(const std::vector<VolumeDesc>& volumes) {
     uint64_t total = 0;
     for (const VolumeDesc& d : volumes) {
@@ -257,7 +293,7 @@ uint64_t estimateBakeMemory(const std::vector<VolumeDesc>& volumes) {
 
 Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const BakeOptions& options) {
     const auto start = std::chrono::steady_clock::now();
-    if (config.method != "path") {
+    if (config.method != "path" && config.method != "vpl") {
         return makeError(ErrorCode::InvalidArgument,
                          "method: \"" + config.method + "\" is not available in this build");
     }
@@ -279,6 +315,26 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     }
     std::atomic<uint64_t> probes_done{0};
     std::atomic<uint64_t> rays{0};
+    std::atomic<uint64_t> cut_total{0};
+
+    // Method vpl: one VPL set for the whole bake, from the seed alone; each probe then gathers
+    // it on top of the direct light the path integrator computes with no bounce.
+    std::optional<VplConfig> vpl_config;
+    std::optional<VplGatherer> vpl_gatherer;
+    if (config.method == "vpl") {
+        vpl_config = resolveVplConfig(scene, descs.value(), config);
+        VplSet set = traceVpls(
+            scene, *tracer.value(),
+            VplPathSettings{*vpl_config->count, vpl_config->bounces, vpl_config->sampling},
+            config.seed);
+        rays.fetch_add(set.rays);
+        result.stats.vplLightPaths = set.lightPaths;
+        vpl_gatherer.emplace(std::move(set.vpls), *tracer.value(),
+                             VplGatherSettings{vpl_config->clamp, *vpl_config->clampDistance,
+                                               vpl_config->shadows, vpl_config->cutError},
+                             config.seed);
+        result.stats.vpls = vpl_gatherer->vpls().size();
+    }
     auto report = [&] {
         if (options.progress) {
             options.progress(BakeProgress{
@@ -290,8 +346,8 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     for (uint32_t vi = 0; vi < descs.value().size(); ++vi) {
         const VolumeDesc& desc = descs.value()[vi];
         PathSettings settings;
-        settings.samples = config.path.samples;
-        settings.maxBounces = config.path.maxBounces;
+        settings.samples = vpl_config ? vpl_config->directSamples : config.path.samples;
+        settings.maxBounces = vpl_config ? 0 : config.path.maxBounces;
         const PathIntegrator integrator(scene, *tracer.value(), settings, desc.shOrder);
 
         const size_t count = desc.grid.probeCount();
@@ -303,6 +359,7 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
         constexpr size_t kChunk = 4;
         auto worker = [&] {
             uint64_t local_rays = 0;
+            uint64_t local_cut = 0;
             for (;;) {
                 const size_t begin = next.fetch_add(kChunk);
                 if (begin >= count) {
@@ -312,6 +369,12 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
                 for (size_t i = begin; i < end; ++i) {
                     const glm::vec3 p = desc.grid.probeWorld(desc.grid.probeCoords(i));
                     ProbeSample s = integrator.bakeProbe(p, config.seed, vi, i);
+                    if (vpl_gatherer) {
+                        const VplGatherResult g = vpl_gatherer->gather(p, desc.shOrder, s.sh);
+                        s.sh += g.sh;
+                        s.rays += g.rays;
+                        local_cut += g.cutSize;
+                    }
                     probes[i] = s.sh;
                     validity[i] =
                         s.backFaceFraction > config.backfaceThreshold ? kProbeInvalid : kProbeValid;
@@ -320,6 +383,7 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
                 probes_done.fetch_add(end - begin);
             }
             rays.fetch_add(local_rays);
+            cut_total.fetch_add(local_cut);
         };
         const uint64_t volume_end = probes_done.load() + count;
         std::vector<std::thread> pool;
@@ -366,6 +430,9 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     result.stats.mraysPerSecond =
         result.stats.seconds > 0 ? double(result.stats.rays) / result.stats.seconds * 1e-6 : 0;
     result.stats.peakMemoryBytes = peakResidentBytes();
+    if (vpl_gatherer && total_probes > 0) {
+        result.stats.vplMeanCut = double(cut_total.load()) / double(total_probes);
+    }
 
     BakeMetadata& m = result.file.metadata;
     m.toolVersion = "probekit " PROBEKIT_VERSION_STRING;
@@ -378,6 +445,9 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     for (size_t i = 0; i < resolved.volumes.size(); ++i) {
         const VolumeDesc& d = descs.value()[i];
         resolved.volumes[i].resolution = d.grid.resolution();
+    }
+    if (vpl_config) {
+        resolved.vpl = *vpl_config; // the chosen count and clamp distance
     }
     m.parametersJson = describeConfig(resolved);
     m.seed = config.seed;

@@ -298,12 +298,68 @@ EnvironmentConfig parseEnvironment(const Reader& r, const Json& j, const std::st
     return e;
 }
 
+VplConfig parseVpl(const Reader& r, const Json& j, const std::string& path) {
+    r.checkKeys(j, path,
+                {"count", "bounces", "direct_samples", "sampling", "clamp", "clamp_distance",
+                 "shadows", "cut_error"});
+    VplConfig v;
+    if (j.contains("count")) {
+        const Json& n = j["count"];
+        if (n.is_string()) {
+            r.choice(n, path + ".count", {"auto"});
+        } else {
+            v.count = uint32_t(r.unsignedInt(n, path + ".count", 1, 1u << 24));
+        }
+    }
+    if (j.contains("bounces")) {
+        v.bounces = uint32_t(r.unsignedInt(j["bounces"], path + ".bounces", 1, 1024));
+    }
+    if (j.contains("direct_samples")) {
+        v.directSamples =
+            uint32_t(r.unsignedInt(j["direct_samples"], path + ".direct_samples", 1, 1u << 24));
+    }
+    if (j.contains("sampling")) {
+        const std::string s =
+            r.choice(j["sampling"], path + ".sampling", {"random", "stratified", "jittered"});
+        v.sampling = s == "random"     ? VplSampling::Random
+                     : s == "jittered" ? VplSampling::Jittered
+                                       : VplSampling::Stratified;
+    }
+    if (j.contains("clamp")) {
+        const std::string s =
+            r.choice(j["clamp"], path + ".clamp", {"none", "distance", "spherical"});
+        v.clamp = s == "none"       ? VplClamp::None
+                  : s == "distance" ? VplClamp::Distance
+                                    : VplClamp::Spherical;
+    }
+    if (j.contains("clamp_distance")) {
+        const Json& d = j["clamp_distance"];
+        if (d.is_string()) {
+            r.choice(d, path + ".clamp_distance", {"auto"});
+        } else {
+            v.clampDistance = float(r.positive(d, path + ".clamp_distance"));
+        }
+    }
+    if (j.contains("shadows")) {
+        v.shadows = r.choice(j["shadows"], path + ".shadows", {"on", "off"}) == "on";
+    }
+    if (j.contains("cut_error")) {
+        const double e = r.number(j["cut_error"], path + ".cut_error");
+        if (e < 0.0 || e >= 1.0) {
+            r.fail(path + ".cut_error", "must be in [0, 1) (0 gathers every VPL)");
+        }
+        v.cutError = float(e);
+    }
+    return v;
+}
+
 BakeConfig parseTop(const Reader& r, const Json& j, const std::filesystem::path& base_dir) {
-    r.checkKeys(j, "",
-                {"method", "seed", "path", "environment", "volumes", "validity", "max_memory_mb"});
+    r.checkKeys(
+        j, "",
+        {"method", "seed", "path", "vpl", "environment", "volumes", "validity", "max_memory_mb"});
     BakeConfig c;
     if (j.contains("method")) {
-        c.method = r.choice(j["method"], "method", {"path"});
+        c.method = r.choice(j["method"], "method", {"path", "vpl"});
     }
     if (j.contains("seed")) {
         c.seed = r.unsignedInt(j["seed"], "seed", 0, UINT64_MAX);
@@ -318,6 +374,9 @@ BakeConfig parseTop(const Reader& r, const Json& j, const std::filesystem::path&
             c.path.maxBounces =
                 uint32_t(r.unsignedInt(p["max_bounces"], "path.max_bounces", 0, 1024));
         }
+    }
+    if (j.contains("vpl")) {
+        c.vpl = parseVpl(r, j["vpl"], "vpl");
     }
     if (j.contains("environment")) {
         c.environment = parseEnvironment(r, j["environment"], "environment", base_dir);
@@ -377,6 +436,30 @@ const char* boundsModeName(BoundsMode m) {
 
 } // namespace
 
+std::string_view toString(VplClamp clamp) {
+    switch (clamp) {
+    case VplClamp::None:
+        return "none";
+    case VplClamp::Distance:
+        return "distance";
+    case VplClamp::Spherical:
+        return "spherical";
+    }
+    return "unknown";
+}
+
+std::string_view toString(VplSampling sampling) {
+    switch (sampling) {
+    case VplSampling::Random:
+        return "random";
+    case VplSampling::Stratified:
+        return "stratified";
+    case VplSampling::Jittered:
+        return "jittered";
+    }
+    return "unknown";
+}
+
 Result<BakeConfig> parseBakeConfig(std::string_view json_text, std::string_view source,
                                    const std::filesystem::path& base_dir) {
     Json j;
@@ -410,6 +493,17 @@ std::string describeConfig(const BakeConfig& c) {
     j["method"] = c.method;
     j["seed"] = c.seed;
     j["path"] = {{"samples", c.path.samples}, {"max_bounces", c.path.maxBounces}};
+    if (c.method == "vpl") {
+        const VplConfig& v = c.vpl;
+        j["vpl"] = {{"bounces", v.bounces},
+                    {"direct_samples", v.directSamples},
+                    {"sampling", std::string(toString(v.sampling))},
+                    {"clamp", std::string(toString(v.clamp))},
+                    {"shadows", v.shadows ? "on" : "off"},
+                    {"cut_error", v.cutError}};
+        j["vpl"]["count"] = v.count ? Json(*v.count) : Json("auto");
+        j["vpl"]["clamp_distance"] = v.clampDistance ? Json(*v.clampDistance) : Json("auto");
+    }
     switch (c.environment.type) {
     case EnvironmentConfig::Type::Black:
         j["environment"] = {{"type", "black"}};

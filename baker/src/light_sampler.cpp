@@ -7,15 +7,11 @@
 
 #include <glm/geometric.hpp>
 
+#include "sampling.hpp"
+
 namespace probekit::baker {
 
 namespace {
-
-// Rec. 709 luminance: the weight that matches how bright an emitter looks, used only to shape
-// sampling densities.
-double luminance(glm::vec3 c) {
-    return 0.2126 * double(c.x) + 0.7152 * double(c.y) + 0.0722 * double(c.z);
-}
 
 // Index i with cdf[i] <= u < cdf[i + 1] for u in [0, 1): never an empty interval.
 template <class T>

@@ -9,76 +9,18 @@
 #include <glm/geometric.hpp>
 
 #include "rng.hpp"
+#include "sampling.hpp"
 
 namespace probekit::baker {
 
 namespace {
 
-constexpr float kInvPi = std::numbers::inv_pi_v<float>;
-constexpr float kTwoPi = 2.0f * std::numbers::pi_v<float>;
-constexpr float kFourPi = 4.0f * std::numbers::pi_v<float>;
 // The probe's own directions are uniform over the sphere.
 constexpr float kProbeDirectionPdf = 1.0f / kFourPi;
 
 // Samples are summed into a block before the block joins the total, so that a probe of many
 // thousand samples does not lose the small late terms to float rounding of one long sum.
 constexpr uint32_t kSamplesPerBlock = 64;
-
-// Veach's power heuristic (beta = 2), pdf^2 / (pdf^2 + other^2), written so that huge pdfs (a
-// grazing emitter) give 1 or 0 instead of inf / inf. Precondition: pdf > 0.
-float powerHeuristic(float pdf, float other_pdf) {
-    const float ratio = other_pdf / pdf;
-    return 1.0f / (1.0f + ratio * ratio);
-}
-
-float maxComponent(glm::vec3 v) {
-    return std::max(v.x, std::max(v.y, v.z));
-}
-
-bool isBlack(glm::vec3 v) {
-    return v.x == 0.0f && v.y == 0.0f && v.z == 0.0f;
-}
-
-struct LightDirection {
-    glm::vec3 direction; // unit, from the point towards the light
-    float distance;      // to the light; infinite for directional lights
-};
-
-// Where a punctual light is seen from `point`; nothing for a point or spot light at the point.
-std::optional<LightDirection> directionToLight(const PunctualLight& light, glm::vec3 point) {
-    if (light.type == LightType::Directional) {
-        return LightDirection{-glm::normalize(light.direction), kInfinity};
-    }
-    const glm::vec3 offset = light.position - point;
-    const float distance = glm::length(offset);
-    if (!(distance > 0.0f)) {
-        return std::nullopt;
-    }
-    return LightDirection{offset / distance, distance};
-}
-
-// Equal-area map of the unit square onto the sphere: z = 1 - 2u, phi = 2 pi v.
-glm::vec3 sphereDirection(glm::vec2 u) {
-    const float z = 1.0f - 2.0f * u.x;
-    const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
-    const float phi = kTwoPi * u.y;
-    return glm::vec3(r * std::cos(phi), r * std::sin(phi), z);
-}
-
-// Cosine-weighted direction about unit `n` (pdf cos / pi), through the branchless orthonormal
-// basis of Duff et al., "Building an Orthonormal Basis, Revisited" (JCGT 2017).
-glm::vec3 cosineDirection(glm::vec3 n, glm::vec2 u) {
-    const float sign = std::copysign(1.0f, n.z);
-    const float a = -1.0f / (sign + n.z);
-    const float b = n.x * n.y * a;
-    const glm::vec3 tangent(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x);
-    const glm::vec3 bitangent(b, sign + n.y * n.y * a, -n.y);
-    const float r = std::sqrt(u.x);
-    const float phi = kTwoPi * u.y;
-    // 1 - u.x >= 2^-24, so the direction is never tangent to the surface.
-    const float z = std::sqrt(1.0f - u.x);
-    return glm::normalize(r * std::cos(phi) * tangent + r * std::sin(phi) * bitangent + z * n);
-}
 
 } // namespace
 

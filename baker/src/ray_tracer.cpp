@@ -1,5 +1,7 @@
 #include "ray_tracer.hpp"
 
+#include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <cstring>
 
@@ -176,6 +178,33 @@ bool RayTracer::occluded(glm::vec3 origin, glm::vec3 dir, float t_max) const {
     // Any hit is enough for visibility; Embree marks one by setting tfar to -inf.
     rtcOccluded1(m_scene, &context, &ray);
     return ray.tfar < 0.0f;
+}
+
+void RayTracer::occluded(std::span<const OcclusionRay> rays, std::span<uint8_t> occluded,
+                         bool coherent) const {
+    assert(occluded.size() == rays.size());
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    // Coherent rays (one origin) let the stream regroup them into packets that traverse the BVH
+    // together; incoherent ones are better served one by one inside the stream.
+    context.flags =
+        coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    // Chunks on the stack: large enough for Embree to fill its packets, small enough to stay
+    // in L1/L2.
+    constexpr size_t kChunk = 256;
+    RTCRay chunk[kChunk];
+    for (size_t begin = 0; begin < rays.size(); begin += kChunk) {
+        const size_t count = std::min(kChunk, rays.size() - begin);
+        for (size_t i = 0; i < count; ++i) {
+            const OcclusionRay& r = rays[begin + i];
+            chunk[i] = makeRay(r.origin, r.dir, r.tMax);
+        }
+        // Any hit is enough; Embree marks one by setting tfar to -inf.
+        rtcOccluded1M(m_scene, &context, chunk, unsigned(count), sizeof(RTCRay));
+        for (size_t i = 0; i < count; ++i) {
+            occluded[begin + i] = chunk[i].tfar < 0.0f ? 1 : 0;
+        }
+    }
 }
 
 #if defined(__SSE__)

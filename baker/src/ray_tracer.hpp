@@ -16,6 +16,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -60,6 +61,19 @@ public:
 
     // Whether anything is hit with t in [0, t_max] (any hit, cheaper than intersect).
     bool occluded(glm::vec3 origin, glm::vec3 dir, float t_max) const;
+
+    // Many visibility queries at once: occluded[i] = occluded(rays[i].origin, rays[i].dir,
+    // rays[i].tMax) as 0 or 1, same results as the single-ray query. Goes through Embree's ray
+    // stream API, which regroups the rays into SIMD packets; `coherent` (rays leaving one point,
+    // e.g. a probe gathering lights) lets it use its coherent packet traversal. Preconditions:
+    // occluded.size() == rays.size(), every dir non-zero.
+    struct OcclusionRay {
+        glm::vec3 origin;
+        glm::vec3 dir;
+        float tMax;
+    };
+    void occluded(std::span<const OcclusionRay> rays, std::span<uint8_t> occluded,
+                  bool coherent) const;
 
     // The world-space point at barycentrics `bary` of `triangle`, interpolated from the vertices
     // (more precise than origin + t dir far from the origin, which offsetOrigin relies on).

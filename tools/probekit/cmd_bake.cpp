@@ -24,6 +24,11 @@ struct BakeOptionsCli {
     std::optional<uint32_t> samples;
     std::optional<uint32_t> bounces;
     std::optional<uint64_t> seed;
+    std::optional<uint32_t> vplCount;
+    std::optional<std::string> vplClamp;
+    std::optional<std::string> vplShadows;
+    std::optional<std::string> vplSampling;
+    std::optional<uint32_t> vplBounces;
     uint32_t threads = 0;
     std::vector<uint32_t> resolution;
     std::optional<float> density;
@@ -81,13 +86,33 @@ int runBake(const BakeOptionsCli& o) {
         config.method = *o.method;
     }
     if (o.samples) {
-        config.path.samples = *o.samples;
+        // For vpl the only per-probe directions are those of the direct light.
+        (config.method == "vpl" ? config.vpl.directSamples : config.path.samples) = *o.samples;
     }
     if (o.bounces) {
         config.path.maxBounces = *o.bounces;
     }
     if (o.seed) {
         config.seed = *o.seed;
+    }
+    if (o.vplCount) {
+        config.vpl.count = *o.vplCount;
+    }
+    if (o.vplClamp) {
+        config.vpl.clamp = *o.vplClamp == "none"       ? baker::VplClamp::None
+                           : *o.vplClamp == "distance" ? baker::VplClamp::Distance
+                                                       : baker::VplClamp::Spherical;
+    }
+    if (o.vplShadows) {
+        config.vpl.shadows = *o.vplShadows == "on";
+    }
+    if (o.vplSampling) {
+        config.vpl.sampling = *o.vplSampling == "random"     ? baker::VplSampling::Random
+                              : *o.vplSampling == "jittered" ? baker::VplSampling::Jittered
+                                                             : baker::VplSampling::Stratified;
+    }
+    if (o.vplBounces) {
+        config.vpl.bounces = *o.vplBounces;
     }
     if (o.maxMemoryMb) {
         config.maxMemoryBytes = *o.maxMemoryMb << 20;
@@ -147,9 +172,27 @@ int runBake(const BakeOptionsCli& o) {
         return kExitFailure;
     }
     if (!o.quiet) {
-        std::printf("baking %s: method %s, %u samples, %u bounces, seed %llu\n", o.scene.c_str(),
-                    config.method.c_str(), config.path.samples, config.path.maxBounces,
-                    static_cast<unsigned long long>(config.seed));
+        if (config.method == "vpl") {
+            const baker::VplConfig v =
+                baker::resolveVplConfig(scene.value(), placed.value(), config);
+            std::printf("baking %s: method vpl, seed %llu\n"
+                        "  direct light: %u directions per probe (vpl.direct_samples)\n"
+                        "  %u VPLs%s, %u bounces, %s sampling, clamp %s (%.4f m%s), shadows %s, "
+                        "cut error %g\n",
+                        o.scene.c_str(), static_cast<unsigned long long>(config.seed),
+                        v.directSamples, *v.count,
+                        config.vpl.count ? ""
+                                         : " (auto: 4 x surface area / probe spacing^2, "
+                                           "power of two in 16384..65536)",
+                        v.bounces, std::string(baker::toString(v.sampling)).c_str(),
+                        std::string(baker::toString(v.clamp)).c_str(), *v.clampDistance,
+                        config.vpl.clampDistance ? "" : ", auto: 2 sqrt(area / (pi count))",
+                        v.shadows ? "on" : "off", double(v.cutError));
+        } else {
+            std::printf("baking %s: method %s, %u samples, %u bounces, seed %llu\n",
+                        o.scene.c_str(), config.method.c_str(), config.path.samples,
+                        config.path.maxBounces, static_cast<unsigned long long>(config.seed));
+        }
         for (const VolumeDesc& d : placed.value()) {
             const glm::uvec3 r = d.grid.resolution();
             const glm::vec3 lo = d.grid.bounds().min;
@@ -196,6 +239,9 @@ int runBake(const BakeOptionsCli& o) {
         {"invalid_probes", s.invalidProbes},
         {"peak_memory_bytes", s.peakMemoryBytes},
         {"threads", s.threads},
+        {"vpls", s.vpls},
+        {"vpl_light_paths", s.vplLightPaths},
+        {"vpl_mean_cut", s.vplMeanCut},
         {"settings", nlohmann::json::parse(result.value().file.metadata.parametersJson)},
     };
     if (!o.quiet) {
@@ -205,6 +251,11 @@ int runBake(const BakeOptionsCli& o) {
                     double(s.rays), s.mraysPerSecond,
                     static_cast<unsigned long long>(s.invalidProbes),
                     double(s.peakMemoryBytes) / (1 << 20), s.threads);
+        if (config.method == "vpl") {
+            std::printf("  %llu VPLs from %llu light paths, %.1f clusters gathered per probe\n",
+                        static_cast<unsigned long long>(s.vpls),
+                        static_cast<unsigned long long>(s.vplLightPaths), s.vplMeanCut);
+        }
     }
     if (!o.report.empty()) {
         const std::string text = report.dump(2) + "\n";
@@ -226,11 +277,23 @@ void addBakeCommand(CLI::App& app, Command& selected) {
     cmd->add_option("SCENE", o->scene, "glTF 2.0 scene (.gltf or .glb)")->required();
     cmd->add_option("-o,--output", o->output, "output .pvol")->required();
     cmd->add_option("--config", o->config, "bake config JSON (flags override it)");
-    cmd->add_option("--method", o->method, "lighting method")->check(CLI::IsMember({"path"}));
-    cmd->add_option("--samples", o->samples, "path: directions per probe")
+    cmd->add_option("--method", o->method, "lighting method")
+        ->check(CLI::IsMember({"path", "vpl"}));
+    cmd->add_option("--samples", o->samples,
+                    "directions per probe (path: full paths; vpl: direct light only)")
         ->check(CLI::Range(1u, 1u << 24));
     cmd->add_option("--bounces", o->bounces, "path: maximum bounces")->check(CLI::Range(0u, 1024u));
     cmd->add_option("--seed", o->seed, "random seed");
+    cmd->add_option("--vpl-count", o->vplCount, "vpl: VPLs to place (default: from the scene)")
+        ->check(CLI::Range(1u, 1u << 24));
+    cmd->add_option("--vpl-clamp", o->vplClamp, "vpl: near-VPL clamping")
+        ->check(CLI::IsMember({"none", "distance", "spherical"}));
+    cmd->add_option("--vpl-shadows", o->vplShadows, "vpl: visibility of VPLs at probes")
+        ->check(CLI::IsMember({"on", "off"}));
+    cmd->add_option("--vpl-sampling", o->vplSampling, "vpl: light-path sampling")
+        ->check(CLI::IsMember({"random", "stratified", "jittered"}));
+    cmd->add_option("--vpl-bounces", o->vplBounces, "vpl: reflections per light path")
+        ->check(CLI::Range(1u, 1024u));
     cmd->add_option("--threads", o->threads, "worker threads (0 = all cores)");
     auto* res = cmd->add_option("--resolution", o->resolution,
                                 "probes per axis X,Y,Z (powers of two), every volume")
