@@ -14,13 +14,15 @@ layout(location = 2) in uint in_id;            // per instance: G-buffer id (ren
 layout(location = 0) out vec3 out_position;
 layout(location = 1) out vec3 out_normal;
 layout(location = 2) out vec3 out_albedo;
-layout(location = 3) flat out uint out_id;
+layout(location = 3) out vec3 out_emission;
+layout(location = 4) flat out uint out_id;
 
 void main() {
     const vec3 position = in_center_radius.xyz + in_center_radius.w * in_direction;
     out_position = position;
     out_normal = in_direction;
     out_albedo = vec3(1.0);
+    out_emission = vec3(0.0);
     out_id = in_id;
     gl_Position = pk_frame.viewProjection * vec4(position, 1.0);
 }

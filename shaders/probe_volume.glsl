@@ -36,20 +36,26 @@ vec3 pk_sh_irradiance(vec3 sh[9], vec3 n) {
 }
 
 // Unpacks the 7 (or, for L1, the first 3) RGBA texels of one probe into RGB coefficients.
-// Mirrors probekit::unpackProbe (formats/src/volume.cpp).
+// Mirrors probekit::unpackProbe (formats/src/volume.cpp): band-2 value j = 3k + c at plane
+// 3 + j / 4, component j % 4, written out with constant indices (loops with computed indices
+// would keep the arrays in memory on CPU implementations such as lavapipe).
 void pk_unpack_probe(vec4 t[7], bool l2, out vec3 sh[9]) {
-    for (int i = 0; i < 4; ++i) {
-        sh[i] = vec3(t[0][i], t[1][i], t[2][i]);
-    }
-    for (int k = 0; k < 5; ++k) {
-        vec3 c = vec3(0.0);
-        if (l2) {
-            for (int ch = 0; ch < 3; ++ch) {
-                int j = 3 * k + ch;
-                c[ch] = t[3 + j / 4][j % 4];
-            }
-        }
-        sh[4 + k] = c;
+    sh[0] = vec3(t[0].x, t[1].x, t[2].x);
+    sh[1] = vec3(t[0].y, t[1].y, t[2].y);
+    sh[2] = vec3(t[0].z, t[1].z, t[2].z);
+    sh[3] = vec3(t[0].w, t[1].w, t[2].w);
+    if (l2) {
+        sh[4] = t[3].xyz;                    // j = 0, 1, 2
+        sh[5] = vec3(t[3].w, t[4].xy);       // j = 3, 4, 5
+        sh[6] = vec3(t[4].zw, t[5].x);       // j = 6, 7, 8
+        sh[7] = t[5].yzw;                    // j = 9, 10, 11
+        sh[8] = t[6].xyz;                    // j = 12, 13, 14
+    } else {
+        sh[4] = vec3(0.0);
+        sh[5] = vec3(0.0);
+        sh[6] = vec3(0.0);
+        sh[7] = vec3(0.0);
+        sh[8] = vec3(0.0);
     }
 }
 
@@ -153,11 +159,9 @@ void pk_fetch_planes(uint s, vec3 uvw, out vec4 t[PK_MAX_PLANES]) {
     const uint flags = pk_volume_set.volumes[s].resolution.w;
     const bool l2 = (flags & PK_VOLUME_FLAG_L2) != 0u;
     const bool blend = (flags & PK_VOLUME_FLAG_BLEND) != 0u;
-    vec4 tb[PK_MAX_PLANES];
-    for (int p = 0; p < PK_MAX_PLANES; ++p) {
-        t[p] = vec4(0.0);
-        tb[p] = vec4(0.0);
-    }
+    const vec4 zero = vec4(0.0);
+    t = vec4[PK_MAX_PLANES](zero, zero, zero, zero, zero, zero, zero);
+    vec4 tb[PK_MAX_PLANES] = t;
     // One case per slot, so every array index is a constant (s is uniform in every caller).
     switch (s) {
         PK_FETCH_SLOT(0)
@@ -171,9 +175,13 @@ void pk_fetch_planes(uint s, vec3 uvw, out vec4 t[PK_MAX_PLANES]) {
     }
     if (blend) {
         const float f = pk_volume_set.volumes[s].boxMax.w;
-        for (int p = 0; p < PK_MAX_PLANES; ++p) {
-            t[p] = t[p] * (1.0 - f) + tb[p] * f;
-        }
+        t[0] = t[0] * (1.0 - f) + tb[0] * f;
+        t[1] = t[1] * (1.0 - f) + tb[1] * f;
+        t[2] = t[2] * (1.0 - f) + tb[2] * f;
+        t[3] = t[3] * (1.0 - f) + tb[3] * f;
+        t[4] = t[4] * (1.0 - f) + tb[4] * f;
+        t[5] = t[5] * (1.0 - f) + tb[5] * f;
+        t[6] = t[6] * (1.0 - f) + tb[6] * f;
     }
 }
 
@@ -187,13 +195,44 @@ vec3 pk_volume_irradiance(uint s, vec3 local, vec3 n) {
     return pk_sh_irradiance(sh, n);
 }
 
+// Where no volume covers p, VolumeSet::irradiance samples the nearest box alone. Passing over
+// the volumes once without fetching anything finds out which case applies, so that the
+// blending pass below has one fetch site: SIMD implementations (GPUs, lavapipe) then fetch
+// each volume once for a group of pixels, not once per case.
+void pk_coverage(vec3 p, out bool covered, out uint nearest) {
+    const uint count = pk_volume_set.header.x;
+    covered = false;
+    nearest = pk_blend_slot(0u);
+    float nearest_distance = 0.0;
+    for (uint i = 0u; i < count; ++i) {
+        const uint s = pk_blend_slot(i);
+        const vec3 local = pk_to_local(s, p);
+        covered = covered || pk_volume_weight(s, local) > 0.0;
+        // Ties go to the earlier volume in blending order, as on the CPU.
+        const float d = pk_distance_to_volume(s, local);
+        if (i == 0u || d < nearest_distance) {
+            nearest = s;
+            nearest_distance = d;
+        }
+    }
+}
+
 // Irradiance E (W/m^2, not divided by pi) at world position p for a receiver with unit world
 // normal n, blended over every volume of the set. Mirrors, term for term,
 // probekit::runtime::VolumeSet::irradiance(p, n, normal_offset) (runtime/src/sampler.cpp), with
 // normal_offset = params.x: the sample point moves that many metres along n, away from the
 // surface whose probes may sit behind it (self-leaking); 0 samples p itself.
+//
+// The CPU loop skips volumes of weight 0 and stops once `remaining` reaches 0; here every
+// volume is visited (a loop without divergent exits keeps the slot uniform, so
+// pk_fetch_planes' switch stays a real branch) and a volume is sampled only when its share
+// a = w * remaining is positive, which selects exactly the volumes the CPU samples. Outside
+// every volume the nearest one takes weight 1, giving E of that volume alone.
 vec3 pk_irradiance(vec3 world_position, vec3 normal) {
     const vec3 p = world_position + pk_volume_set.params.x * normal;
+    bool covered;
+    uint nearest;
+    pk_coverage(p, covered, nearest);
     const uint count = pk_volume_set.header.x;
     vec3 weighted_sum = vec3(0.0);
     float weight_sum = 0.0;
@@ -201,34 +240,16 @@ vec3 pk_irradiance(vec3 world_position, vec3 normal) {
     for (uint i = 0u; i < count; ++i) {
         const uint s = pk_blend_slot(i);
         const vec3 local = pk_to_local(s, p);
-        const float w = pk_volume_weight(s, local);
-        if (w <= 0.0) {
-            continue;
-        }
+        const float w = covered ? pk_volume_weight(s, local) : (s == nearest ? 1.0 : 0.0);
         const float a = w * remaining;
-        weighted_sum += a * pk_volume_irradiance(s, local, normal);
-        weight_sum += a;
-        remaining -= a;
-        // A volume at full weight hides everything of lower priority.
-        if (remaining <= 0.0) {
-            break;
+        if (a > 0.0) {
+            weighted_sum += a * pk_volume_irradiance(s, local, normal);
+            weight_sum += a;
+            remaining -= a;
         }
     }
-    if (weight_sum > 0.0) {
-        return weighted_sum / weight_sum;
-    }
-    // Outside every volume: the nearest box, ties to the earlier volume in blending order.
-    uint nearest = pk_blend_slot(0u);
-    float nearest_distance = 0.0;
-    for (uint i = 0u; i < count; ++i) {
-        const uint s = pk_blend_slot(i);
-        const float d = pk_distance_to_volume(s, pk_to_local(s, p));
-        if (i == 0u || d < nearest_distance) {
-            nearest = s;
-            nearest_distance = d;
-        }
-    }
-    return pk_volume_irradiance(nearest, pk_to_local(nearest, p), normal);
+    // Normalising keeps the last volume's fade band from fading to black.
+    return weighted_sum / weight_sum;
 }
 
 // Irradiance from one probe's own coefficients, no interpolation: sh::irradiance of
@@ -243,38 +264,27 @@ vec3 pk_probe_irradiance(uint s, uvec3 probe, vec3 n) {
 }
 
 // The texture fetches of pk_irradiance and nothing else: the same volumes (the same coverage
-// test and early exit, so the same fetches), the same coordinates, but no SH unpacking,
-// evaluation or weighted blending; the fetched texels are summed so none is optimised away.
-// The cost floor of pk_irradiance, for benchmarks.
+// pass and shares, so the same fetches) at the same coordinates, but no SH unpacking,
+// evaluation or weighted sums; the fetched texels are added up so none is optimised away. The
+// cost floor of pk_irradiance, for benchmarks.
 vec4 pk_fetch_only(vec3 world_position, vec3 normal) {
     const vec3 p = world_position + pk_volume_set.params.x * normal;
+    bool covered;
+    uint nearest;
+    pk_coverage(p, covered, nearest);
     const uint count = pk_volume_set.header.x;
     vec4 sum = vec4(0.0);
-    vec4 t[PK_MAX_PLANES];
     float remaining = 1.0;
-    bool covered = false;
     for (uint i = 0u; i < count; ++i) {
         const uint s = pk_blend_slot(i);
         const vec3 local = pk_to_local(s, p);
-        const float w = pk_volume_weight(s, local);
-        if (w <= 0.0) {
-            continue;
-        }
-        covered = true;
-        pk_fetch_planes(s, pk_volume_uvw(s, local), t);
-        for (int k = 0; k < PK_MAX_PLANES; ++k) {
-            sum += t[k];
-        }
-        remaining -= w * remaining;
-        if (remaining <= 0.0) {
-            break;
-        }
-    }
-    if (!covered) {
-        const uint s = pk_blend_slot(0u);
-        pk_fetch_planes(s, pk_volume_uvw(s, pk_to_local(s, p)), t);
-        for (int k = 0; k < PK_MAX_PLANES; ++k) {
-            sum += t[k];
+        const float w = covered ? pk_volume_weight(s, local) : (s == nearest ? 1.0 : 0.0);
+        const float a = w * remaining;
+        if (a > 0.0) {
+            vec4 t[PK_MAX_PLANES];
+            pk_fetch_planes(s, pk_volume_uvw(s, local), t);
+            sum += t[0] + t[1] + t[2] + t[3] + t[4] + t[5] + t[6];
+            remaining -= a;
         }
     }
     return sum;

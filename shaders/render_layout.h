@@ -24,7 +24,7 @@ using uvec4 = glm::uvec4;
 #define PK_MAX_LIGHTS 8
 
 // PkFrameGpu.info.x: what the shading pass writes.
-#define PK_VIEW_SHADED 0u     // albedo / pi x (E + direct), W/(sr m^2)
+#define PK_VIEW_SHADED 0u     // albedo / pi x (E + direct) + emission, W/(sr m^2)
 #define PK_VIEW_IRRADIANCE 1u // E, W/m^2
 #define PK_VIEW_PROBES 2u     // surfaces shaded, probe spheres lit by their own SH
 #define PK_VIEW_VALIDITY 3u   // probe spheres only: valid ones lit by their SH, invalid ones red

@@ -1,7 +1,10 @@
 #version 450
 // Shading pass: per pixel, pk_irradiance at the G-buffer position and normal, then the view's
-// output (render_layout.h). Compiled twice: as is, and with PK_FETCH_ONLY (the benchmark floor:
-// pk_irradiance's texture fetches alone).
+// output (render_layout.h). Compiled three times: as is (shaded and irradiance views), with
+// PK_PROBE_VIEWS (also shades probe spheres by their own SH: the probes and validity views),
+// and with PK_FETCH_ONLY (the benchmark floor: pk_irradiance's texture fetches alone). Keeping
+// the sphere path out of the common variant matters on SIMD CPUs such as lavapipe, which run
+// both sides of a divergent branch, texture fetches included.
 #extension GL_GOOGLE_include_directive : require
 #define PK_VOLUME_SET 0
 #include "probe_volume.glsl"
@@ -15,8 +18,9 @@ layout(std140, set = 1, binding = 0) uniform PkFrameBlock {
 layout(set = 1, binding = 1, rgba32f) uniform readonly image2D g_position;
 layout(set = 1, binding = 2, rgba32f) uniform readonly image2D g_normal;
 layout(set = 1, binding = 3, rgba16f) uniform readonly image2D g_albedo;
-layout(set = 1, binding = 4, r32ui) uniform readonly uimage2D g_id;
-layout(set = 1, binding = 5, rgba32f) uniform writeonly image2D out_color;
+layout(set = 1, binding = 4, rgba16f) uniform readonly image2D g_emission;
+layout(set = 1, binding = 5, r32ui) uniform readonly uimage2D g_id;
+layout(set = 1, binding = 6, rgba32f) uniform writeonly image2D out_color;
 
 // Unshadowed irradiance from the frame's punctual lights on a surface at p with normal n. The
 // light term mirrors probekit::baker::PunctualLight::irradianceAt (baker/src/scene.cpp): I / d^2,
@@ -71,6 +75,7 @@ void main() {
 #else
     const uint view = pk_frame.info.x;
     vec3 color;
+#ifdef PK_PROBE_VIEWS
     if (kind == PK_KIND_PROBE) {
         const bool valid = ((id >> 2u) & 1u) != 0u;
         const uint slot = (id >> 3u) & 7u;
@@ -83,7 +88,9 @@ void main() {
             // A white Lambertian sphere lit by the probe's own SH: radiance E / pi.
             color = pk_probe_irradiance(slot, probe, n) / PK_PI;
         }
-    } else {
+    } else
+#endif
+    {
         vec3 e = pk_irradiance(position, n);
         if (view == PK_VIEW_IRRADIANCE) {
             color = e;
@@ -91,7 +98,7 @@ void main() {
             if (pk_frame.info.z != 0u) {
                 e += pk_direct_irradiance(position, n);
             }
-            color = imageLoad(g_albedo, px).rgb / PK_PI * e;
+            color = imageLoad(g_albedo, px).rgb / PK_PI * e + imageLoad(g_emission, px).rgb;
         }
     }
     imageStore(out_color, px, vec4(color, 1.0));

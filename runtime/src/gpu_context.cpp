@@ -40,8 +40,8 @@ constexpr FormatNeed kFormatNeeds[] = {
 
 // Sampled images one shader stage reads through a volume set (both states of every slot).
 constexpr uint32_t kSampledImagesPerSet = 2 * PK_MAX_VOLUMES * PK_MAX_PLANES;
-// The renderer's shading stage adds a sampler, two uniform buffers and five storage images.
-constexpr uint32_t kResourcesPerStage = kSampledImagesPerSet + 8;
+// The renderer's shading stage adds a sampler, two uniform buffers and six storage images.
+constexpr uint32_t kResourcesPerStage = kSampledImagesPerSet + 9;
 
 bool hasLayer(const char* name) {
     uint32_t count = 0;

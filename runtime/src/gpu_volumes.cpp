@@ -111,13 +111,17 @@ gpu::PkVolumeSetGpu packVolumeSetGpu(std::span<const VolumeDesc> descs,
     return set;
 }
 
-std::vector<uint8_t> packTexelBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count) {
+size_t texelBoxBytes(const Volume& volume, glm::uvec3 count) {
+    return size_t(volume.planes()) * count.x * count.y * count.z * texelSize(volume.desc.storage);
+}
+
+void packTexelBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count,
+                  std::span<uint8_t> bytes) {
     const grid::GridLayout& layout = volume.desc.grid;
     assert(glm::all(glm::greaterThanEqual(count, glm::uvec3(1u))));
     assert(glm::all(glm::lessThanEqual(first + count, layout.resolution())));
+    assert(bytes.size() == texelBoxBytes(volume, count));
     const size_t texel_bytes = texelSize(volume.desc.storage);
-    const size_t box_texels = size_t(count.x) * count.y * count.z;
-    std::vector<uint8_t> bytes(volume.planes() * box_texels * texel_bytes);
     const auto* source = volume.desc.storage == Storage::Float32
                              ? reinterpret_cast<const uint8_t*>(volume.texelsF32.data())
                              : reinterpret_cast<const uint8_t*>(volume.texelsF16.data());
@@ -134,7 +138,6 @@ std::vector<uint8_t> packTexelBox(const Volume& volume, glm::uvec3 first, glm::u
             }
         }
     }
-    return bytes;
 }
 
 Result<VkDescriptorSetLayout> createVolumeSetLayout(const GpuContext& context) {
@@ -341,19 +344,20 @@ Result<void> GpuVolumeSet::Impl::upload(size_t index, VolumeState which, const V
     const bool whole = first == glm::uvec3(0u) && count == slot.desc.grid.resolution();
     assert(state.initialised || whole);
 
-    const std::vector<uint8_t> bytes = packTexelBox(source, first, count);
-    if (staging.size < bytes.size()) {
+    const size_t bytes = texelBoxBytes(source, count);
+    if (staging.size < bytes) {
         detail::destroy(device(), staging);
         Result<Buffer> buffer =
-            detail::createBuffer(*context, bytes.size(), VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
+            detail::createBuffer(*context, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
         if (!buffer) {
             return buffer.error();
         }
         staging = buffer.value();
     }
-    std::memcpy(staging.mapped, bytes.data(), bytes.size());
+    // The previous upload waited for its copy, so the staging memory is free to overwrite.
+    packTexelBox(source, first, count, {static_cast<uint8_t*>(staging.mapped), bytes});
 
-    const size_t plane_bytes = bytes.size() / source.planes();
+    const size_t plane_bytes = bytes / source.planes();
     // A whole replacement discards the old texels (UNDEFINED); a box keeps the rest of them.
     const VkImageLayout old_layout =
         whole ? VK_IMAGE_LAYOUT_UNDEFINED : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
@@ -384,7 +388,7 @@ Result<void> GpuVolumeSet::Impl::upload(size_t index, VolumeState which, const V
         }
     }));
     state.initialised = true;
-    uploaded += bytes.size();
+    uploaded += bytes;
     return {};
 }
 

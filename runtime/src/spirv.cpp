@@ -20,6 +20,9 @@ constexpr uint32_t kGbufferFrag[] = {
 constexpr uint32_t kShadeComp[] = {
 #include "shade.comp.inc"
 };
+constexpr uint32_t kShadeProbeViewsComp[] = {
+#include "shade_probe_views.comp.inc"
+};
 constexpr uint32_t kShadeFetchOnlyComp[] = {
 #include "shade_fetch_only.comp.inc"
 };
@@ -40,6 +43,9 @@ std::span<const uint32_t> gbufferFrag() {
 }
 std::span<const uint32_t> shadeComp() {
     return kShadeComp;
+}
+std::span<const uint32_t> shadeProbeViewsComp() {
+    return kShadeProbeViewsComp;
 }
 std::span<const uint32_t> shadeFetchOnlyComp() {
     return kShadeFetchOnlyComp;

@@ -75,6 +75,7 @@ std::span<const uint32_t> gbufferVert();
 std::span<const uint32_t> probeSphereVert();
 std::span<const uint32_t> gbufferFrag();
 std::span<const uint32_t> shadeComp();
+std::span<const uint32_t> shadeProbeViewsComp();
 std::span<const uint32_t> shadeFetchOnlyComp();
 std::span<const uint32_t> irradiancePointsComp();
 } // namespace spirv

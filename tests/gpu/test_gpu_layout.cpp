@@ -129,7 +129,8 @@ TEST(GpuLayout, TexelBoxIsPlaneMajorXFastest) {
             makeVolume({4, 2, 8}, grid::PositionMode::Center, sh::Order::L2, storage, {}, 0, 0.0f);
         const glm::uvec3 first(1, 0, 2);
         const glm::uvec3 count(2, 2, 3);
-        const std::vector<uint8_t> bytes = runtime::packTexelBox(v, first, count);
+        std::vector<uint8_t> bytes(runtime::texelBoxBytes(v, count));
+        runtime::packTexelBox(v, first, count, bytes);
         const size_t texel = 4 * bytesPerComponent(storage);
         ASSERT_EQ(bytes.size(), size_t(v.planes()) * 12 * texel);
         const auto* source = storage == Storage::Float32
@@ -150,7 +151,8 @@ TEST(GpuLayout, TexelBoxIsPlaneMajorXFastest) {
             }
         }
         // The whole grid is the volume's own texel array.
-        const std::vector<uint8_t> all = runtime::packTexelBox(v, glm::uvec3(0), {4, 2, 8});
+        std::vector<uint8_t> all(runtime::texelBoxBytes(v, {4, 2, 8}));
+        runtime::packTexelBox(v, glm::uvec3(0), {4, 2, 8}, all);
         ASSERT_EQ(all.size(), v.texelBytes());
         EXPECT_EQ(std::memcmp(all.data(), source, all.size()), 0);
     }

@@ -19,6 +19,7 @@ void addInfoCommand(CLI::App& app, Command& selected);
 void addValidateCommand(CLI::App& app, Command& selected);
 void addSynthCommand(CLI::App& app, Command& selected);
 void addSampleCommand(CLI::App& app, Command& selected);
+void addRenderCommand(CLI::App& app, Command& selected);
 void addBakeCommand(CLI::App& app, Command& selected);
 void addDiffCommand(CLI::App& app, Command& selected);
 void addSceneCommand(CLI::App& app, Command& selected);

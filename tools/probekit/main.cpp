@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
     probekit::cli::addBakeCommand(app, selected);
     probekit::cli::addBenchRaysCommand(app, selected);
     probekit::cli::addSampleCommand(app, selected);
+    probekit::cli::addRenderCommand(app, selected);
     probekit::cli::addDiffCommand(app, selected);
 
     try {

@@ -71,8 +71,10 @@ gpu::PkVolumeSetGpu packVolumeSetGpu(std::span<const VolumeDesc> descs,
 
 // The texels of the probes [first, first + count) of every plane, in staging order: plane by
 // plane, then z, y, x (x fastest), in the volume's storage format (raw float or half bits).
-// Preconditions: count >= 1 per axis and first + count <= resolution.
-std::vector<uint8_t> packTexelBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count);
+// Preconditions: count >= 1 per axis and first + count <= resolution; `out` holds
+// texelBoxBytes(volume, count) bytes.
+size_t texelBoxBytes(const Volume& volume, glm::uvec3 count);
+void packTexelBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count, std::span<uint8_t> out);
 
 // Creates the descriptor set layout probe_volume.glsl declares (all shader stages). Identically
 // defined layouts are compatible, so pipelines made with it accept any GpuVolumeSet's set. The

@@ -1,0 +1,841 @@
+#include "probekit/runtime/renderer.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cassert>
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include <glm/ext/matrix_clip_space.hpp>
+#include <glm/ext/matrix_transform.hpp>
+#include <glm/geometric.hpp>
+
+#include "render_layout.h"
+#include "vk_util.hpp"
+
+namespace probekit::runtime {
+
+using detail::Buffer;
+using detail::Image;
+
+namespace {
+
+constexpr VkFormat kPositionFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
+constexpr VkFormat kNormalFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
+// Albedo (in [0, 1]) and emission need no more than half precision.
+constexpr VkFormat kAlbedoFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
+constexpr VkFormat kEmissionFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
+constexpr VkFormat kIdFormat = VK_FORMAT_R32_UINT;
+constexpr VkFormat kDepthFormat = VK_FORMAT_D32_SFLOAT;
+constexpr VkFormat kColorFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
+// G-buffer colour targets (position, normal, albedo, emission, id), then depth.
+constexpr uint32_t kColorTargets = 5;
+constexpr uint32_t kAttachments = kColorTargets + 1;
+// Storage images of the shading pass: the colour targets and the output.
+constexpr uint32_t kShadeImages = kColorTargets + 1;
+constexpr uint32_t kShadeGroup = 8; // local_size of shade.comp
+// Timestamps: before the G-buffer pass, between the passes, after shading.
+constexpr uint32_t kTimestamps = 3;
+
+static_assert(uint32_t(RenderView::Shaded) == PK_VIEW_SHADED &&
+              uint32_t(RenderView::Irradiance) == PK_VIEW_IRRADIANCE &&
+              uint32_t(RenderView::Probes) == PK_VIEW_PROBES &&
+              uint32_t(RenderView::Validity) == PK_VIEW_VALIDITY);
+static_assert(kMaxRenderLights == PK_MAX_LIGHTS);
+
+// Per-instance data of a probe sphere (probe_sphere.vert locations 1 and 2).
+struct ProbeInstance {
+    glm::vec4 centerRadius;
+    uint32_t id;
+};
+static_assert(sizeof(ProbeInstance) == 20);
+
+// An icosahedron subdivided once: 80 triangles, round enough for a probe and cheap enough for
+// 32^3 of them on a CPU rasteriser.
+std::vector<glm::vec3> unitSphereTriangles() {
+    const float t = (1.0f + std::sqrt(5.0f)) / 2.0f;
+    const std::array<glm::vec3, 12> v = {
+        glm::vec3(-1, t, 0), glm::vec3(1, t, 0), glm::vec3(-1, -t, 0), glm::vec3(1, -t, 0),
+        glm::vec3(0, -1, t), glm::vec3(0, 1, t), glm::vec3(0, -1, -t), glm::vec3(0, 1, -t),
+        glm::vec3(t, 0, -1), glm::vec3(t, 0, 1), glm::vec3(-t, 0, -1), glm::vec3(-t, 0, 1)};
+    const int faces[20][3] = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                              {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                              {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                              {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
+    std::vector<glm::vec3> out;
+    for (const auto& f : faces) {
+        const glm::vec3 a = glm::normalize(v[size_t(f[0])]);
+        const glm::vec3 b = glm::normalize(v[size_t(f[1])]);
+        const glm::vec3 c = glm::normalize(v[size_t(f[2])]);
+        const glm::vec3 ab = glm::normalize(a + b);
+        const glm::vec3 bc = glm::normalize(b + c);
+        const glm::vec3 ca = glm::normalize(c + a);
+        for (const glm::vec3& p : {a, ab, ca, ab, b, bc, ca, bc, c, ab, bc, ca}) {
+            out.push_back(p);
+        }
+    }
+    return out;
+}
+
+gpu::PkLightGpu packLight(const PunctualLight& light) {
+    gpu::PkLightGpu out{};
+    out.position = glm::vec4(light.position, light.range);
+    out.direction = glm::vec4(light.direction, light.innerConeCos);
+    out.intensity = glm::vec4(light.intensity, light.outerConeCos);
+    const uint32_t type = light.type == LightType::Point  ? PK_LIGHT_POINT
+                          : light.type == LightType::Spot ? PK_LIGHT_SPOT
+                                                          : PK_LIGHT_DIRECTIONAL;
+    out.info = glm::uvec4(type, 0u, 0u, 0u);
+    return out;
+}
+
+} // namespace
+
+Camera frameBounds(const grid::Aabb& bounds, float vertical_fov_deg, float aspect) {
+    const glm::vec3 center = bounds.center();
+    const glm::vec3 half = 0.5f * bounds.size();
+    const float tan_half = std::tan(glm::radians(vertical_fov_deg) * 0.5f);
+    // Distance from the front face (z = min.z) at which the face fits both angles.
+    const float fit = std::max(half.y, half.x / std::max(aspect, 1e-6f)) / tan_half;
+    const float margin = 1.1f;
+    Camera camera;
+    camera.verticalFovDeg = vertical_fov_deg;
+    camera.target = center;
+    camera.eye = glm::vec3(center.x, center.y, bounds.min.z - fit * margin);
+    const float distance = center.z - camera.eye.z;
+    const float extent = glm::length(bounds.size());
+    camera.nearPlane = std::max(1e-4f, 0.01f * distance);
+    camera.farPlane = distance + 2.0f * extent + 1.0f;
+    return camera;
+}
+
+struct Renderer::Impl {
+    GpuContext* context = nullptr;
+    VkDescriptorSetLayout volumeLayout = VK_NULL_HANDLE;
+    VkDescriptorSetLayout frameLayout = VK_NULL_HANDLE; // G-buffer pass: frame uniforms
+    VkDescriptorSetLayout shadeLayout = VK_NULL_HANDLE; // shading: uniforms + G-buffer + output
+    VkPipelineLayout gbufferPipelineLayout = VK_NULL_HANDLE;
+    VkPipelineLayout shadePipelineLayout = VK_NULL_HANDLE;
+    VkRenderPass renderPass = VK_NULL_HANDLE;
+    VkPipeline meshPipeline = VK_NULL_HANDLE;
+    VkPipeline probePipeline = VK_NULL_HANDLE;
+    VkPipeline shadePipeline = VK_NULL_HANDLE;
+    VkPipeline probeViewsPipeline = VK_NULL_HANDLE;
+    VkPipeline fetchOnlyPipeline = VK_NULL_HANDLE;
+    VkDescriptorPool pool = VK_NULL_HANDLE;
+    VkDescriptorSet frameSet = VK_NULL_HANDLE;
+    VkDescriptorSet shadeSet = VK_NULL_HANDLE;
+    VkQueryPool queries = VK_NULL_HANDLE;
+    Buffer frameUniforms;
+    Buffer vertices;
+    Buffer indices;
+    uint32_t indexCount = 0;
+    Buffer sphere;
+    uint32_t sphereVertices = 0;
+    Buffer instances;
+    // Size-dependent targets.
+    uint32_t width = 0;
+    uint32_t height = 0;
+    Image position, normal, albedo, emission, id, depth, color;
+    VkFramebuffer framebuffer = VK_NULL_HANDLE;
+    Buffer readback; // color, position, normal one after the other
+
+    ~Impl();
+    VkDevice device() const { return context->device(); }
+    void destroyTargets();
+    Result<void> createTargets(uint32_t w, uint32_t h);
+    Result<void> createPipelines();
+    Result<void> writeInstances(const GpuVolumeSet& volumes, const FrameSettings& settings,
+                                uint32_t& count);
+    void record(VkCommandBuffer cmd, GpuVolumeSet& volumes, const FrameSettings& settings,
+                uint32_t instance_count);
+};
+
+Renderer::Impl::~Impl() {
+    if (context == nullptr) {
+        return;
+    }
+    const VkDevice d = device();
+    vkQueueWaitIdle(context->queue());
+    destroyTargets();
+    for (Buffer* b : {&frameUniforms, &vertices, &indices, &sphere, &instances}) {
+        detail::destroy(d, *b);
+    }
+    for (VkPipeline p :
+         {meshPipeline, probePipeline, shadePipeline, probeViewsPipeline, fetchOnlyPipeline}) {
+        if (p != VK_NULL_HANDLE) {
+            vkDestroyPipeline(d, p, nullptr);
+        }
+    }
+    for (VkPipelineLayout l : {gbufferPipelineLayout, shadePipelineLayout}) {
+        if (l != VK_NULL_HANDLE) {
+            vkDestroyPipelineLayout(d, l, nullptr);
+        }
+    }
+    for (VkDescriptorSetLayout l : {volumeLayout, frameLayout, shadeLayout}) {
+        if (l != VK_NULL_HANDLE) {
+            vkDestroyDescriptorSetLayout(d, l, nullptr);
+        }
+    }
+    if (renderPass != VK_NULL_HANDLE) {
+        vkDestroyRenderPass(d, renderPass, nullptr);
+    }
+    if (pool != VK_NULL_HANDLE) {
+        vkDestroyDescriptorPool(d, pool, nullptr);
+    }
+    if (queries != VK_NULL_HANDLE) {
+        vkDestroyQueryPool(d, queries, nullptr);
+    }
+}
+
+void Renderer::Impl::destroyTargets() {
+    const VkDevice d = device();
+    if (framebuffer != VK_NULL_HANDLE) {
+        vkDestroyFramebuffer(d, framebuffer, nullptr);
+        framebuffer = VK_NULL_HANDLE;
+    }
+    for (Image* image : {&position, &normal, &albedo, &emission, &id, &depth, &color}) {
+        detail::destroy(d, *image);
+    }
+    detail::destroy(d, readback);
+    width = height = 0;
+}
+
+Result<void> Renderer::Impl::createTargets(uint32_t w, uint32_t h) {
+    destroyTargets();
+    const VkExtent3D extent{w, h, 1};
+    const VkImageUsageFlags gbuffer_usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT |
+                                            VK_IMAGE_USAGE_STORAGE_BIT |
+                                            VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
+    struct Target {
+        Image* image;
+        VkFormat format;
+        VkImageUsageFlags usage;
+        VkImageAspectFlags aspect;
+    };
+    const Target targets[] = {
+        {&position, kPositionFormat, gbuffer_usage, VK_IMAGE_ASPECT_COLOR_BIT},
+        {&normal, kNormalFormat, gbuffer_usage, VK_IMAGE_ASPECT_COLOR_BIT},
+        {&albedo, kAlbedoFormat, gbuffer_usage, VK_IMAGE_ASPECT_COLOR_BIT},
+        {&emission, kEmissionFormat, gbuffer_usage, VK_IMAGE_ASPECT_COLOR_BIT},
+        {&id, kIdFormat, gbuffer_usage, VK_IMAGE_ASPECT_COLOR_BIT},
+        {&depth, kDepthFormat, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
+         VK_IMAGE_ASPECT_DEPTH_BIT},
+        {&color, kColorFormat, VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
+         VK_IMAGE_ASPECT_COLOR_BIT},
+    };
+    for (const Target& t : targets) {
+        Result<Image> image =
+            detail::createImage(*context, VK_IMAGE_TYPE_2D, t.format, extent, t.usage, t.aspect);
+        if (!image) {
+            return image.error();
+        }
+        *t.image = image.value();
+    }
+    const VkImageView attachments[] = {position.view, normal.view, albedo.view,
+                                       emission.view, id.view,     depth.view};
+    VkFramebufferCreateInfo fb{VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO};
+    fb.renderPass = renderPass;
+    fb.attachmentCount = kAttachments;
+    fb.pAttachments = attachments;
+    fb.width = w;
+    fb.height = h;
+    fb.layers = 1;
+    PK_VK_TRY(vkCreateFramebuffer(device(), &fb, nullptr, &framebuffer));
+
+    Result<Buffer> buffer =
+        detail::createBuffer(*context, VkDeviceSize(w) * h * 3 * sizeof(glm::vec4),
+                             VK_BUFFER_USAGE_TRANSFER_DST_BIT, true);
+    if (!buffer) {
+        return buffer.error();
+    }
+    readback = buffer.value();
+
+    // The shading set points at the new images.
+    const VkDescriptorImageInfo images[kShadeImages] = {
+        {VK_NULL_HANDLE, position.view, VK_IMAGE_LAYOUT_GENERAL},
+        {VK_NULL_HANDLE, normal.view, VK_IMAGE_LAYOUT_GENERAL},
+        {VK_NULL_HANDLE, albedo.view, VK_IMAGE_LAYOUT_GENERAL},
+        {VK_NULL_HANDLE, emission.view, VK_IMAGE_LAYOUT_GENERAL},
+        {VK_NULL_HANDLE, id.view, VK_IMAGE_LAYOUT_GENERAL},
+        {VK_NULL_HANDLE, color.view, VK_IMAGE_LAYOUT_GENERAL}};
+    std::array<VkWriteDescriptorSet, kShadeImages> writes{};
+    for (uint32_t i = 0; i < kShadeImages; ++i) {
+        writes[i].sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+        writes[i].dstSet = shadeSet;
+        writes[i].dstBinding = i + 1;
+        writes[i].descriptorCount = 1;
+        writes[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+        writes[i].pImageInfo = &images[i];
+    }
+    vkUpdateDescriptorSets(device(), uint32_t(writes.size()), writes.data(), 0, nullptr);
+    width = w;
+    height = h;
+    return {};
+}
+
+Result<void> Renderer::Impl::createPipelines() {
+    const VkDevice d = device();
+    // Render pass: four colour targets and depth, cleared; left in GENERAL for the shading
+    // pass's storage-image reads and the readback copies.
+    std::array<VkAttachmentDescription, kAttachments> attachments{};
+    const VkFormat formats[kAttachments] = {kPositionFormat, kNormalFormat, kAlbedoFormat,
+                                            kEmissionFormat, kIdFormat,     kDepthFormat};
+    for (uint32_t i = 0; i < kAttachments; ++i) {
+        attachments[i].format = formats[i];
+        attachments[i].samples = VK_SAMPLE_COUNT_1_BIT;
+        attachments[i].loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+        attachments[i].storeOp =
+            i < kColorTargets ? VK_ATTACHMENT_STORE_OP_STORE : VK_ATTACHMENT_STORE_OP_DONT_CARE;
+        attachments[i].stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
+        attachments[i].stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
+        attachments[i].initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+        attachments[i].finalLayout = i < kColorTargets
+                                         ? VK_IMAGE_LAYOUT_GENERAL
+                                         : VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL;
+    }
+    VkAttachmentReference color_refs[kColorTargets];
+    for (uint32_t i = 0; i < kColorTargets; ++i) {
+        color_refs[i] = {i, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL};
+    }
+    const VkAttachmentReference depth_ref{kColorTargets,
+                                          VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL};
+    VkSubpassDescription subpass{};
+    subpass.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS;
+    subpass.colorAttachmentCount = kColorTargets;
+    subpass.pColorAttachments = color_refs;
+    subpass.pDepthStencilAttachment = &depth_ref;
+    std::array<VkSubpassDependency, 2> dependencies{};
+    // The previous frame's shading reads and readback copies finish before the targets are
+    // cleared and drawn again (write-after-read), and its depth writes before depth is cleared.
+    dependencies[0].srcSubpass = VK_SUBPASS_EXTERNAL;
+    dependencies[0].dstSubpass = 0;
+    dependencies[0].srcStageMask = VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT |
+                                   VK_PIPELINE_STAGE_TRANSFER_BIT |
+                                   VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
+    dependencies[0].srcAccessMask = VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
+    dependencies[0].dstStageMask = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT |
+                                   VK_PIPELINE_STAGE_EARLY_FRAGMENT_TESTS_BIT |
+                                   VK_PIPELINE_STAGE_LATE_FRAGMENT_TESTS_BIT;
+    dependencies[0].dstAccessMask = VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT |
+                                    VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_READ_BIT |
+                                    VK_ACCESS_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
+    // The G-buffer is complete before the shading pass reads it or a copy reads it back.
+    dependencies[1].srcSubpass = 0;
+    dependencies[1].dstSubpass = VK_SUBPASS_EXTERNAL;
+    dependencies[1].srcStageMask = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT;
+    dependencies[1].srcAccessMask = VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT;
+    dependencies[1].dstStageMask =
+        VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT;
+    dependencies[1].dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT;
+    VkRenderPassCreateInfo pass{VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO};
+    pass.attachmentCount = uint32_t(attachments.size());
+    pass.pAttachments = attachments.data();
+    pass.subpassCount = 1;
+    pass.pSubpasses = &subpass;
+    pass.dependencyCount = uint32_t(dependencies.size());
+    pass.pDependencies = dependencies.data();
+    PK_VK_TRY(vkCreateRenderPass(d, &pass, nullptr, &renderPass));
+
+    // Descriptor set layouts.
+    const VkDescriptorSetLayoutBinding frame_binding{
+        0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
+        VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
+    VkDescriptorSetLayoutCreateInfo layout_info{
+        VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+    layout_info.bindingCount = 1;
+    layout_info.pBindings = &frame_binding;
+    PK_VK_TRY(vkCreateDescriptorSetLayout(d, &layout_info, nullptr, &frameLayout));
+    std::array<VkDescriptorSetLayoutBinding, 1 + kShadeImages> shade_bindings{};
+    shade_bindings[0] = {0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT,
+                         nullptr};
+    for (uint32_t i = 1; i <= kShadeImages; ++i) {
+        shade_bindings[i] = {i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, VK_SHADER_STAGE_COMPUTE_BIT,
+                             nullptr};
+    }
+    layout_info.bindingCount = uint32_t(shade_bindings.size());
+    layout_info.pBindings = shade_bindings.data();
+    PK_VK_TRY(vkCreateDescriptorSetLayout(d, &layout_info, nullptr, &shadeLayout));
+    Result<VkDescriptorSetLayout> volume_layout = createVolumeSetLayout(*context);
+    if (!volume_layout) {
+        return volume_layout.error();
+    }
+    volumeLayout = volume_layout.value();
+
+    VkPipelineLayoutCreateInfo pipeline_layout{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+    pipeline_layout.setLayoutCount = 1;
+    pipeline_layout.pSetLayouts = &frameLayout;
+    PK_VK_TRY(vkCreatePipelineLayout(d, &pipeline_layout, nullptr, &gbufferPipelineLayout));
+    const VkDescriptorSetLayout shade_sets[2] = {volumeLayout, shadeLayout};
+    pipeline_layout.setLayoutCount = 2;
+    pipeline_layout.pSetLayouts = shade_sets;
+    PK_VK_TRY(vkCreatePipelineLayout(d, &pipeline_layout, nullptr, &shadePipelineLayout));
+
+    // Shader modules; destroyed once the pipelines exist.
+    std::array<VkShaderModule, 6> modules{};
+    const std::span<const uint32_t> codes[6] = {
+        detail::spirv::gbufferVert(),         detail::spirv::probeSphereVert(),
+        detail::spirv::gbufferFrag(),         detail::spirv::shadeComp(),
+        detail::spirv::shadeProbeViewsComp(), detail::spirv::shadeFetchOnlyComp()};
+    auto destroy_modules = [&] {
+        for (VkShaderModule m : modules) {
+            if (m != VK_NULL_HANDLE) {
+                vkDestroyShaderModule(d, m, nullptr);
+            }
+        }
+    };
+    for (size_t i = 0; i < modules.size(); ++i) {
+        Result<VkShaderModule> module = detail::createShaderModule(d, codes[i]);
+        if (!module) {
+            destroy_modules();
+            return module.error();
+        }
+        modules[i] = module.value();
+    }
+
+    // Graphics pipelines (meshes, probe spheres): same state, different vertex input.
+    VkPipelineShaderStageCreateInfo stages[2]{};
+    for (auto& s : stages) {
+        s.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
+        s.pName = "main";
+    }
+    stages[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
+    stages[1].stage = VK_SHADER_STAGE_FRAGMENT_BIT;
+    stages[1].module = modules[2];
+    VkPipelineInputAssemblyStateCreateInfo assembly{
+        VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
+    assembly.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+    VkPipelineViewportStateCreateInfo viewport{
+        VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
+    viewport.viewportCount = 1;
+    viewport.scissorCount = 1;
+    VkPipelineRasterizationStateCreateInfo raster{
+        VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
+    raster.polygonMode = VK_POLYGON_MODE_FILL;
+    raster.cullMode = VK_CULL_MODE_NONE; // two-sided surfaces
+    raster.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;
+    raster.lineWidth = 1.0f;
+    VkPipelineMultisampleStateCreateInfo multisample{
+        VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
+    multisample.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;
+    VkPipelineDepthStencilStateCreateInfo depth_state{
+        VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
+    depth_state.depthTestEnable = VK_TRUE;
+    depth_state.depthWriteEnable = VK_TRUE;
+    depth_state.depthCompareOp = VK_COMPARE_OP_LESS;
+    // Identical for every target (no independentBlend feature needed); the id target ignores
+    // the components it does not have.
+    std::array<VkPipelineColorBlendAttachmentState, kColorTargets> blend_attachments{};
+    for (auto& b : blend_attachments) {
+        b.colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
+                           VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
+    }
+    VkPipelineColorBlendStateCreateInfo blend{
+        VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
+    blend.attachmentCount = uint32_t(blend_attachments.size());
+    blend.pAttachments = blend_attachments.data();
+    const VkDynamicState dynamic_states[2] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR};
+    VkPipelineDynamicStateCreateInfo dynamic{VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO};
+    dynamic.dynamicStateCount = 2;
+    dynamic.pDynamicStates = dynamic_states;
+
+    const VkVertexInputBindingDescription mesh_binding{0, sizeof(RenderVertex),
+                                                       VK_VERTEX_INPUT_RATE_VERTEX};
+    const VkVertexInputAttributeDescription mesh_attributes[4] = {
+        {0, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, position))},
+        {1, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, normal))},
+        {2, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, albedo))},
+        {3, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, emission))}};
+    const VkVertexInputBindingDescription probe_bindings[2] = {
+        {0, sizeof(glm::vec3), VK_VERTEX_INPUT_RATE_VERTEX},
+        {1, sizeof(ProbeInstance), VK_VERTEX_INPUT_RATE_INSTANCE}};
+    const VkVertexInputAttributeDescription probe_attributes[3] = {
+        {0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0},
+        {1, 1, VK_FORMAT_R32G32B32A32_SFLOAT, uint32_t(offsetof(ProbeInstance, centerRadius))},
+        {2, 1, VK_FORMAT_R32_UINT, uint32_t(offsetof(ProbeInstance, id))}};
+    VkPipelineVertexInputStateCreateInfo inputs[2]{};
+    for (auto& in : inputs) {
+        in.sType = VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO;
+    }
+    inputs[0].vertexBindingDescriptionCount = 1;
+    inputs[0].pVertexBindingDescriptions = &mesh_binding;
+    inputs[0].vertexAttributeDescriptionCount = 4;
+    inputs[0].pVertexAttributeDescriptions = mesh_attributes;
+    inputs[1].vertexBindingDescriptionCount = 2;
+    inputs[1].pVertexBindingDescriptions = probe_bindings;
+    inputs[1].vertexAttributeDescriptionCount = 3;
+    inputs[1].pVertexAttributeDescriptions = probe_attributes;
+
+    VkResult r = VK_SUCCESS;
+    VkPipeline* graphics[2] = {&meshPipeline, &probePipeline};
+    for (int i = 0; i < 2 && r == VK_SUCCESS; ++i) {
+        stages[0].module = modules[size_t(i)];
+        VkGraphicsPipelineCreateInfo info{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
+        info.stageCount = 2;
+        info.pStages = stages;
+        info.pVertexInputState = &inputs[i];
+        info.pInputAssemblyState = &assembly;
+        info.pViewportState = &viewport;
+        info.pRasterizationState = &raster;
+        info.pMultisampleState = &multisample;
+        info.pDepthStencilState = &depth_state;
+        info.pColorBlendState = &blend;
+        info.pDynamicState = &dynamic;
+        info.layout = gbufferPipelineLayout;
+        info.renderPass = renderPass;
+        info.subpass = 0;
+        r = vkCreateGraphicsPipelines(d, VK_NULL_HANDLE, 1, &info, nullptr, graphics[i]);
+    }
+    VkPipeline* computes[3] = {&shadePipeline, &probeViewsPipeline, &fetchOnlyPipeline};
+    for (int i = 0; i < 3 && r == VK_SUCCESS; ++i) {
+        VkComputePipelineCreateInfo info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+        info.stage.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
+        info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+        info.stage.module = modules[size_t(3 + i)];
+        info.stage.pName = "main";
+        info.layout = shadePipelineLayout;
+        r = vkCreateComputePipelines(d, VK_NULL_HANDLE, 1, &info, nullptr, computes[i]);
+    }
+    destroy_modules();
+    if (r != VK_SUCCESS) {
+        return detail::vulkanError("vkCreateGraphicsPipelines/vkCreateComputePipelines", r);
+    }
+    return {};
+}
+
+Result<void> Renderer::Impl::writeInstances(const GpuVolumeSet& volumes,
+                                            const FrameSettings& settings, uint32_t& count) {
+    std::vector<ProbeInstance> list;
+    for (size_t s = 0; s < volumes.size(); ++s) {
+        const VolumeDesc& desc = volumes.desc(s);
+        const grid::GridLayout& layout = desc.grid;
+        const glm::vec3 spacing = layout.spacing();
+        const float radius = settings.probeRadius > 0.0f
+                                 ? settings.probeRadius
+                                 : 0.15f * std::min(spacing.x, std::min(spacing.y, spacing.z));
+        const std::vector<uint8_t>& validity = volumes.validity(s);
+        for (size_t i = 0; i < layout.probeCount(); ++i) {
+            const glm::uvec3 c = layout.probeCoords(i);
+            const uint32_t valid = validity[i] == kProbeValid ? 1u : 0u;
+            const uint32_t probe_id = PK_KIND_PROBE | (valid << 2u) | (uint32_t(s) << 3u) |
+                                      (c.x << 8u) | (c.y << 16u) | (c.z << 24u);
+            list.push_back({glm::vec4(layout.probeWorld(c), radius), probe_id});
+        }
+    }
+    const VkDeviceSize bytes = list.size() * sizeof(ProbeInstance);
+    if (instances.size < bytes) {
+        // Earlier frames are complete (render waits for each), so the old buffer is free.
+        detail::destroy(device(), instances);
+        Result<Buffer> buffer =
+            detail::createBuffer(*context, bytes, VK_BUFFER_USAGE_VERTEX_BUFFER_BIT, true);
+        if (!buffer) {
+            return buffer.error();
+        }
+        instances = buffer.value();
+    }
+    std::memcpy(instances.mapped, list.data(), bytes);
+    count = uint32_t(list.size());
+    return {};
+}
+
+void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
+                            const FrameSettings& settings, uint32_t instance_count) {
+    const bool timed = context->timestampPeriodNs() > 0.0;
+    if (timed) {
+        vkCmdResetQueryPool(cmd, queries, 0, kTimestamps);
+    }
+    volumes.recordUniformUpdate(cmd);
+
+    // Frame uniforms, captured in the command buffer.
+    gpu::PkFrameGpu frame{};
+    const Camera& cam = settings.camera;
+    const glm::mat4 view = glm::lookAtRH(cam.eye, cam.target, cam.up);
+    glm::mat4 projection = glm::perspectiveRH_ZO(glm::radians(cam.verticalFovDeg),
+                                                 float(settings.width) / float(settings.height),
+                                                 cam.nearPlane, cam.farPlane);
+    projection[1][1] *= -1.0f; // Vulkan's clip space has +y down: row 0 is the image top
+    frame.viewProjection = projection * view;
+    frame.eye = glm::vec4(cam.eye, 1.0f);
+    frame.info = glm::uvec4(uint32_t(settings.view), uint32_t(settings.lights.size()),
+                            settings.directLight ? 1u : 0u, 0u);
+    frame.size = glm::uvec4(settings.width, settings.height, 0u, 0u);
+    for (size_t i = 0; i < settings.lights.size(); ++i) {
+        frame.lights[i] = packLight(settings.lights[i]);
+    }
+    VkBufferMemoryBarrier uniform_barrier{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER};
+    uniform_barrier.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    uniform_barrier.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    uniform_barrier.buffer = frameUniforms.buffer;
+    uniform_barrier.size = VK_WHOLE_SIZE;
+    uniform_barrier.srcAccessMask = VK_ACCESS_UNIFORM_READ_BIT;
+    uniform_barrier.dstAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_TRANSFER_BIT, 0,
+                         0, nullptr, 1, &uniform_barrier, 0, nullptr);
+    vkCmdUpdateBuffer(cmd, frameUniforms.buffer, 0, sizeof(frame), &frame);
+    uniform_barrier.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    uniform_barrier.dstAccessMask = VK_ACCESS_UNIFORM_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0,
+                         0, nullptr, 1, &uniform_barrier, 0, nullptr);
+
+    if (timed) {
+        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries, 0);
+    }
+    // Pass 1: G-buffer.
+    VkClearValue clears[kAttachments]{};
+    clears[kColorTargets].depthStencil = {1.0f, 0};
+    VkRenderPassBeginInfo begin{VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO};
+    begin.renderPass = renderPass;
+    begin.framebuffer = framebuffer;
+    begin.renderArea = {{0, 0}, {settings.width, settings.height}};
+    begin.clearValueCount = kAttachments;
+    begin.pClearValues = clears;
+    vkCmdBeginRenderPass(cmd, &begin, VK_SUBPASS_CONTENTS_INLINE);
+    const VkViewport viewport{0.0f, 0.0f, float(settings.width), float(settings.height),
+                              0.0f, 1.0f};
+    const VkRect2D scissor{{0, 0}, {settings.width, settings.height}};
+    vkCmdSetViewport(cmd, 0, 1, &viewport);
+    vkCmdSetScissor(cmd, 0, 1, &scissor);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbufferPipelineLayout, 0, 1,
+                            &frameSet, 0, nullptr);
+    const VkDeviceSize zero = 0;
+    if (indexCount > 0 && settings.view != RenderView::Validity) {
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, meshPipeline);
+        vkCmdBindVertexBuffers(cmd, 0, 1, &vertices.buffer, &zero);
+        vkCmdBindIndexBuffer(cmd, indices.buffer, 0, VK_INDEX_TYPE_UINT32);
+        vkCmdDrawIndexed(cmd, indexCount, 1, 0, 0, 0);
+    }
+    if (instance_count > 0) {
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, probePipeline);
+        const VkBuffer buffers[2] = {sphere.buffer, instances.buffer};
+        const VkDeviceSize offsets[2] = {0, 0};
+        vkCmdBindVertexBuffers(cmd, 0, 2, buffers, offsets);
+        vkCmdDraw(cmd, sphereVertices, instance_count, 0, 0);
+    }
+    vkCmdEndRenderPass(cmd);
+    if (timed) {
+        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 1);
+    }
+
+    // Pass 2: shading. The output image's previous contents are not needed (UNDEFINED); the
+    // previous frame's copy from it finishes first.
+    detail::imageBarrier(cmd, color.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+                         VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_TRANSFER_BIT, 0,
+                         VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT);
+    const bool probe_views =
+        settings.view == RenderView::Probes || settings.view == RenderView::Validity;
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
+                      settings.fetchOnly ? fetchOnlyPipeline
+                      : probe_views      ? probeViewsPipeline
+                                         : shadePipeline);
+    const VkDescriptorSet sets[2] = {volumes.descriptorSet(), shadeSet};
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, shadePipelineLayout, 0, 2, sets, 0,
+                            nullptr);
+    vkCmdDispatch(cmd, (settings.width + kShadeGroup - 1) / kShadeGroup,
+                  (settings.height + kShadeGroup - 1) / kShadeGroup, 1);
+    if (timed) {
+        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 2);
+    }
+
+    // Readback copies.
+    const VkDeviceSize image_bytes = VkDeviceSize(settings.width) * settings.height * 16;
+    VkBufferImageCopy region{};
+    region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+    region.imageExtent = {settings.width, settings.height, 1};
+    // Each copied image goes to TRANSFER_SRC_OPTIMAL once the shading pass is done with it;
+    // the next frame starts every target from UNDEFINED again.
+    if (settings.readbackColor) {
+        detail::imageBarrier(cmd, color.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_GENERAL,
+                             VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                             VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT,
+                             VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_READ_BIT);
+        vkCmdCopyImageToBuffer(cmd, color.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                               readback.buffer, 1, &region);
+    }
+    if (settings.readbackGBuffer) {
+        const Image* targets[2] = {&position, &normal};
+        for (size_t k = 0; k < 2; ++k) {
+            detail::imageBarrier(cmd, targets[k]->image, VK_IMAGE_ASPECT_COLOR_BIT,
+                                 VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                                 VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT |
+                                     VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                                 VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT,
+                                 VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_READ_BIT);
+            region.bufferOffset = (k + 1) * image_bytes;
+            vkCmdCopyImageToBuffer(cmd, targets[k]->image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                                   readback.buffer, 1, &region);
+        }
+    }
+    VkMemoryBarrier host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1,
+                         &host, 0, nullptr, 0, nullptr);
+}
+
+Renderer::Renderer(std::unique_ptr<Impl> impl) : m_impl(std::move(impl)) {}
+Renderer::Renderer(Renderer&&) noexcept = default;
+Renderer& Renderer::operator=(Renderer&&) noexcept = default;
+Renderer::~Renderer() = default;
+
+Result<Renderer> Renderer::create(GpuContext& context) {
+    auto impl = std::make_unique<Impl>();
+    impl->context = &context;
+    const VkDevice d = context.device();
+    PK_TRY(impl->createPipelines());
+
+    const VkDescriptorPoolSize sizes[2] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 2},
+                                           {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kShadeImages}};
+    VkDescriptorPoolCreateInfo pool{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+    pool.maxSets = 2;
+    pool.poolSizeCount = 2;
+    pool.pPoolSizes = sizes;
+    PK_VK_TRY(vkCreateDescriptorPool(d, &pool, nullptr, &impl->pool));
+    const VkDescriptorSetLayout layouts[2] = {impl->frameLayout, impl->shadeLayout};
+    VkDescriptorSet sets[2];
+    VkDescriptorSetAllocateInfo allocate{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+    allocate.descriptorPool = impl->pool;
+    allocate.descriptorSetCount = 2;
+    allocate.pSetLayouts = layouts;
+    PK_VK_TRY(vkAllocateDescriptorSets(d, &allocate, sets));
+    impl->frameSet = sets[0];
+    impl->shadeSet = sets[1];
+
+    Result<Buffer> uniforms = detail::createBuffer(
+        context, sizeof(gpu::PkFrameGpu),
+        VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
+    if (!uniforms) {
+        return uniforms.error();
+    }
+    impl->frameUniforms = uniforms.value();
+    const VkDescriptorBufferInfo buffer{impl->frameUniforms.buffer, 0, sizeof(gpu::PkFrameGpu)};
+    std::array<VkWriteDescriptorSet, 2> writes{};
+    for (uint32_t i = 0; i < 2; ++i) {
+        writes[i].sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+        writes[i].dstSet = sets[i];
+        writes[i].dstBinding = 0;
+        writes[i].descriptorCount = 1;
+        writes[i].descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+        writes[i].pBufferInfo = &buffer;
+    }
+    vkUpdateDescriptorSets(d, 2, writes.data(), 0, nullptr);
+
+    const std::vector<glm::vec3> sphere = unitSphereTriangles();
+    Result<Buffer> sphere_buffer = detail::createBuffer(context, sphere.size() * sizeof(glm::vec3),
+                                                        VK_BUFFER_USAGE_VERTEX_BUFFER_BIT, true);
+    if (!sphere_buffer) {
+        return sphere_buffer.error();
+    }
+    impl->sphere = sphere_buffer.value();
+    std::memcpy(impl->sphere.mapped, sphere.data(), sphere.size() * sizeof(glm::vec3));
+    impl->sphereVertices = uint32_t(sphere.size());
+
+    VkQueryPoolCreateInfo query{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+    query.queryType = VK_QUERY_TYPE_TIMESTAMP;
+    query.queryCount = kTimestamps;
+    PK_VK_TRY(vkCreateQueryPool(d, &query, nullptr, &impl->queries));
+    return Renderer(std::move(impl));
+}
+
+Result<void> Renderer::setMeshes(std::span<const RenderVertex> vertices,
+                                 std::span<const uint32_t> indices) {
+    if (indices.size() % 3 != 0) {
+        return makeError(ErrorCode::OutOfRange, "renderer: " + std::to_string(indices.size()) +
+                                                    " indices is not a whole number of triangles");
+    }
+    for (size_t i = 0; i < indices.size(); ++i) {
+        if (indices[i] >= vertices.size()) {
+            return makeError(ErrorCode::OutOfRange,
+                             "renderer: index " + std::to_string(i) + " = " +
+                                 std::to_string(indices[i]) + " is past the " +
+                                 std::to_string(vertices.size()) + " vertices");
+        }
+    }
+    Impl& impl = *m_impl;
+    PK_TRY(impl.context->waitIdle());
+    const VkDevice d = impl.device();
+    detail::destroy(d, impl.vertices);
+    detail::destroy(d, impl.indices);
+    impl.indexCount = 0;
+    if (indices.empty()) {
+        return {};
+    }
+    // Host-visible vertex data: simple, and read once per frame by a small renderer.
+    Result<Buffer> v = detail::createBuffer(*impl.context, vertices.size_bytes(),
+                                            VK_BUFFER_USAGE_VERTEX_BUFFER_BIT, true);
+    if (!v) {
+        return v.error();
+    }
+    impl.vertices = v.value();
+    std::memcpy(impl.vertices.mapped, vertices.data(), vertices.size_bytes());
+    Result<Buffer> i = detail::createBuffer(*impl.context, indices.size_bytes(),
+                                            VK_BUFFER_USAGE_INDEX_BUFFER_BIT, true);
+    if (!i) {
+        return i.error();
+    }
+    impl.indices = i.value();
+    std::memcpy(impl.indices.mapped, indices.data(), indices.size_bytes());
+    impl.indexCount = uint32_t(indices.size());
+    return {};
+}
+
+Result<Frame> Renderer::render(GpuVolumeSet& volumes, const FrameSettings& settings) {
+    Impl& impl = *m_impl;
+    const uint32_t max_size = impl.context->limits().maxImageDimension2D;
+    if (settings.width < 1 || settings.height < 1 || settings.width > max_size ||
+        settings.height > max_size) {
+        return makeError(ErrorCode::OutOfRange, "renderer: image size " +
+                                                    std::to_string(settings.width) + "x" +
+                                                    std::to_string(settings.height) +
+                                                    " is outside 1.." + std::to_string(max_size));
+    }
+    if (settings.lights.size() > kMaxRenderLights) {
+        return makeError(ErrorCode::OutOfRange,
+                         "renderer: " + std::to_string(settings.lights.size()) +
+                             " lights, at most " + std::to_string(kMaxRenderLights));
+    }
+    const Camera& cam = settings.camera;
+    if (!(cam.nearPlane > 0.0f) || !(cam.farPlane > cam.nearPlane) ||
+        !(cam.verticalFovDeg > 0.0f && cam.verticalFovDeg < 180.0f) ||
+        glm::length(glm::cross(cam.target - cam.eye, cam.up)) == 0.0f) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "renderer: degenerate camera (near/far, field of view, or eye, target "
+                         "and up on one line)");
+    }
+    if (impl.width != settings.width || impl.height != settings.height) {
+        PK_TRY(impl.context->waitIdle());
+        PK_TRY(impl.createTargets(settings.width, settings.height));
+    }
+    uint32_t instance_count = 0;
+    if (settings.view == RenderView::Probes || settings.view == RenderView::Validity) {
+        PK_TRY(impl.writeInstances(volumes, settings, instance_count));
+    }
+
+    PK_TRY(impl.context->submitAndWait(
+        [&](VkCommandBuffer cmd) { impl.record(cmd, volumes, settings, instance_count); }));
+
+    Frame frame;
+    frame.width = settings.width;
+    frame.height = settings.height;
+    if (impl.context->timestampPeriodNs() > 0.0) {
+        uint64_t ticks[kTimestamps];
+        PK_VK_TRY(vkGetQueryPoolResults(impl.device(), impl.queries, 0, kTimestamps, sizeof(ticks),
+                                        ticks, sizeof(uint64_t),
+                                        VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+        const double ms = impl.context->timestampPeriodNs() * 1e-6;
+        frame.timings.gbufferMs = double(ticks[1] - ticks[0]) * ms;
+        frame.timings.shadeMs = double(ticks[2] - ticks[1]) * ms;
+    }
+    const size_t pixels = size_t(settings.width) * settings.height;
+    const auto* data = static_cast<const glm::vec4*>(impl.readback.mapped);
+    if (settings.readbackColor) {
+        frame.color.assign(data, data + pixels);
+    }
+    if (settings.readbackGBuffer) {
+        frame.position.assign(data + pixels, data + 2 * pixels);
+        frame.normal.assign(data + 2 * pixels, data + 3 * pixels);
+    }
+    return frame;
+}
+
+} // namespace probekit::runtime

@@ -1,0 +1,512 @@
+// The headless renderer: a flat plane under known lighting gives albedo / pi x E per pixel; the
+// Cornell box in the irradiance view matches the CPU sampler (what `probekit sample` runs) at
+// the G-buffer positions; probe spheres show their own SH; validity colours invalid probes.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <glm/ext/matrix_clip_space.hpp>
+#include <glm/ext/matrix_transform.hpp>
+#include <glm/geometric.hpp>
+
+#include "gpu_test_support.hpp"
+#include "probekit/baker/generators.hpp"
+#include "probekit/baker/scene.hpp"
+#include "probekit/runtime/gpu_volumes.hpp"
+#include "probekit/runtime/renderer.hpp"
+#include "probekit/runtime/sampler.hpp"
+
+using namespace probekit;
+using namespace probekit::gputest;
+using runtime::Frame;
+using runtime::FrameSettings;
+using runtime::GpuVolumeSet;
+using runtime::RenderVertex;
+using runtime::RenderView;
+using runtime::VolumeSet;
+
+namespace {
+
+// The irradiance view is pk_irradiance itself: within the sampler tolerance of
+// test_gpu_sampler.cpp (measured there at ~1e-5), for float volumes.
+constexpr float kIrradianceRelative = 1e-4f;
+// Shaded pixels multiply by the albedo the G-buffer stored as RGBA16F. The albedos here are
+// exact in binary16, but the rasteriser interpolates them (0.75 arrives as 0.74999994) and
+// Vulkan lets float -> binary16 conversion round toward zero (lavapipe does), so the stored
+// albedo can be one binary16 step low: at most 2^-10 relative (a value just above a power of
+// two), on top of the irradiance error.
+constexpr float kShadedRelative = 1.0f / 1024.0f + kIrradianceRelative;
+// Half volumes, as in test_gpu_sampler.cpp: hardware may filter binary16 at half precision.
+constexpr float kHalfRelative = 2e-3f;
+
+// Albedos exactly representable in binary16.
+const glm::vec3 kAlbedo(0.5f, 0.25f, 0.75f);
+
+void writePfm(const std::string& path, const Frame& frame) {
+    std::ofstream out(path, std::ios::binary);
+    out << "PF\n" << frame.width << " " << frame.height << "\n-1\n";
+    // PFM rows run bottom to top.
+    for (uint32_t y = frame.height; y-- > 0;) {
+        for (uint32_t x = 0; x < frame.width; ++x) {
+            const glm::vec4& c = frame.color[x + size_t(frame.width) * y];
+            out.write(reinterpret_cast<const char*>(&c), 3 * sizeof(float));
+        }
+    }
+}
+
+// A square in the plane y = 0, |x|, |z| <= 1, facing +y.
+void planeMesh(std::vector<RenderVertex>& vertices, std::vector<uint32_t>& indices) {
+    const glm::vec3 corners[4] = {{-1, 0, -1}, {1, 0, -1}, {1, 0, 1}, {-1, 0, 1}};
+    for (const glm::vec3& c : corners) {
+        vertices.push_back({c, glm::vec3(0, 1, 0), kAlbedo, glm::vec3(0.0f)});
+    }
+    indices = {0, 2, 1, 0, 3, 2};
+}
+
+FrameSettings planeView(uint32_t width, uint32_t height) {
+    FrameSettings settings;
+    settings.width = width;
+    settings.height = height;
+    settings.camera.eye = glm::vec3(0.3f, 2.5f, 1.5f);
+    settings.camera.target = glm::vec3(0.0f);
+    settings.readbackGBuffer = true;
+    return settings;
+}
+
+float maxAbs(glm::vec3 v) {
+    return std::max(std::abs(v.x), std::max(std::abs(v.y), std::abs(v.z)));
+}
+
+struct PixelCheck {
+    size_t covered = 0;
+    size_t failures = 0;
+    float maxRelative = 0.0f;
+};
+
+// Every covered pixel against `expected(position, normal)`; the frame goes to disk on failure.
+template <class Expected>
+PixelCheck checkPixels(const Frame& frame, float relative, const std::string& name,
+                       const Expected& expected) {
+    PixelCheck out;
+    for (size_t i = 0; i < frame.color.size(); ++i) {
+        if (frame.position[i].w == 0.0f) {
+            EXPECT_EQ(frame.color[i], glm::vec4(0.0f)) << name << ": background pixel " << i;
+            continue;
+        }
+        ++out.covered;
+        const glm::vec3 want =
+            expected(glm::vec3(frame.position[i]), glm::normalize(glm::vec3(frame.normal[i])));
+        const float scale = std::max(maxAbs(want), 1e-6f);
+        const float error = maxAbs(glm::vec3(frame.color[i]) - want) / scale;
+        out.maxRelative = std::max(out.maxRelative, error);
+        if (!(error <= relative)) {
+            if (out.failures++ == 0) {
+                ADD_FAILURE() << name << ": pixel " << i << " (" << i % frame.width << ", "
+                              << i / frame.width << ") is (" << frame.color[i].x << ", "
+                              << frame.color[i].y << ", " << frame.color[i].z << "), expected ("
+                              << want.x << ", " << want.y << ", " << want.z << ")";
+            }
+        }
+    }
+    if (out.failures > 0) {
+        const std::string path = failureOutputPath(name + ".pfm");
+        writePfm(path, frame);
+        ADD_FAILURE() << name << ": " << out.failures << " of " << out.covered
+                      << " pixels off; image in " << path;
+    }
+    std::printf("[ figures  ] %s: %zu pixels, max relative error %.3g (tolerance %.0e)\n",
+                name.c_str(), out.covered, double(out.maxRelative), double(relative));
+    return out;
+}
+
+class Renderer : public GpuTest {
+protected:
+    runtime::Renderer& renderer() {
+        if (!m_renderer) {
+            Result<runtime::Renderer> r = runtime::Renderer::create(context());
+            EXPECT_TRUE(r.ok()) << r.error().message;
+            m_renderer = std::make_unique<runtime::Renderer>(std::move(r).value());
+        }
+        return *m_renderer;
+    }
+    void TearDown() override {
+        m_renderer.reset();
+        GpuTest::TearDown();
+    }
+
+private:
+    std::unique_ptr<runtime::Renderer> m_renderer;
+};
+
+VolumeSpec planeVolumeSpec() {
+    VolumeSpec spec;
+    spec.bounds = {glm::vec3(-2.0f, -1.0f, -2.0f), glm::vec3(2.0f, 1.0f, 2.0f)};
+    spec.resolution = glm::uvec3(8, 4, 8);
+    return spec;
+}
+
+TEST_F(Renderer, UniformlyLitPlaneIsAlbedoTimesRadiance) {
+    // White-furnace-like: a uniform environment of radiance L gives E = pi L for any normal, so
+    // a Lambertian plane reflects albedo x L (formats/CONVENTIONS.md).
+    const glm::vec3 radiance(0.4f, 0.3f, 0.2f);
+    const std::vector<Volume> volumes{makeTestVolume(planeVolumeSpec(), [&](glm::vec3) {
+        sh::ShRgb s;
+        s.rgb[0] = radiance * (2.0f * std::sqrt(sh::kPi));
+        return s;
+    })};
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+    std::vector<RenderVertex> vertices;
+    std::vector<uint32_t> indices;
+    planeMesh(vertices, indices);
+    ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+    Result<Frame> frame = renderer().render(gpu.value(), planeView(96, 64));
+    ASSERT_TRUE(frame.ok()) << frame.error().message;
+    // kY00 is 1 / (2 sqrt(pi)) to 6 decimals: E = pi L within ~1e-6.
+    const PixelCheck check = checkPixels(frame.value(), kShadedRelative, "furnace_plane",
+                                         [&](glm::vec3, glm::vec3) { return kAlbedo * radiance; });
+    EXPECT_GT(check.covered, size_t(96 * 64 / 4));
+}
+
+TEST_F(Renderer, FlatPlaneIsAlbedoOverPiTimesE) {
+    const std::vector<Volume> volumes{makeTestVolume(
+        planeVolumeSpec(), skyAndLight({0.3f, 0.4f, 0.6f}, {0.3f, 1.5f, -0.4f}, 4.0f))};
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+    const VolumeSet cpu(volumes);
+    std::vector<RenderVertex> vertices;
+    std::vector<uint32_t> indices;
+    planeMesh(vertices, indices);
+    ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+
+    FrameSettings settings = planeView(96, 64);
+    Result<Frame> shaded = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(shaded.ok()) << shaded.error().message;
+    for (const glm::vec4& n : shaded.value().normal) {
+        if (n != glm::vec4(0.0f)) {
+            EXPECT_NEAR(n.y, 1.0f, 1e-6f); // the plane's normal, facing the camera above it
+        }
+    }
+    checkPixels(shaded.value(), kShadedRelative, "plane_shaded",
+                [&](glm::vec3 p, glm::vec3 n) { return kAlbedo / sh::kPi * cpu.irradiance(p, n); });
+
+    settings.view = RenderView::Irradiance;
+    Result<Frame> irradiance = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(irradiance.ok());
+    checkPixels(irradiance.value(), kIrradianceRelative, "plane_irradiance",
+                [&](glm::vec3 p, glm::vec3 n) { return cpu.irradiance(p, n); });
+
+    // Unshadowed direct light on top: a point light, a spot light and a directional light.
+    settings.view = RenderView::Shaded;
+    settings.directLight = true;
+    runtime::PunctualLight point;
+    point.position = glm::vec3(0.2f, 0.8f, -0.1f);
+    point.intensity = glm::vec3(2.0f, 1.0f, 0.5f);
+    point.range = 3.0f;
+    runtime::PunctualLight spot;
+    spot.type = runtime::LightType::Spot;
+    spot.position = glm::vec3(-0.5f, 1.0f, 0.5f);
+    spot.direction = glm::normalize(glm::vec3(0.2f, -1.0f, -0.1f));
+    spot.intensity = glm::vec3(3.0f);
+    spot.innerConeCos = 0.95f;
+    spot.outerConeCos = 0.8f;
+    runtime::PunctualLight sun;
+    sun.type = runtime::LightType::Directional;
+    sun.direction = glm::normalize(glm::vec3(0.3f, -1.0f, 0.2f));
+    sun.intensity = glm::vec3(0.5f, 0.6f, 0.7f);
+    settings.lights = {point, spot, sun};
+    Result<Frame> lit = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(lit.ok()) << lit.error().message;
+    // The light terms of baker::PunctualLight::irradianceAt, times the cosine.
+    auto direct = [&](glm::vec3 p, glm::vec3 n) {
+        glm::vec3 e(0.0f);
+        for (const runtime::PunctualLight& light : settings.lights) {
+            if (light.type == runtime::LightType::Directional) {
+                e += light.intensity * std::max(glm::dot(n, -light.direction), 0.0f);
+                continue;
+            }
+            const glm::vec3 to_point = p - light.position;
+            const float d2 = glm::dot(to_point, to_point);
+            float attenuation = 1.0f / d2;
+            if (light.range > 0.0f) {
+                const float r = d2 / (light.range * light.range);
+                const float window = std::clamp(1.0f - r * r, 0.0f, 1.0f);
+                attenuation *= window * window;
+            }
+            if (light.type == runtime::LightType::Spot) {
+                const float c = glm::dot(light.direction, to_point / std::sqrt(d2));
+                const float t =
+                    std::clamp((c - light.outerConeCos) / (light.innerConeCos - light.outerConeCos),
+                               0.0f, 1.0f);
+                attenuation *= t * t;
+            }
+            e += light.intensity * attenuation *
+                 std::max(glm::dot(n, -to_point / std::sqrt(d2)), 0.0f);
+        }
+        return e;
+    };
+    checkPixels(lit.value(), kShadedRelative, "plane_direct", [&](glm::vec3 p, glm::vec3 n) {
+        return kAlbedo / sh::kPi * (cpu.irradiance(p, n) + direct(p, n));
+    });
+}
+
+// The Cornell box as `probekit render` draws it: flat triangles with their material albedo and
+// emission (the test repeats the tool's few lines of flattening).
+void cornellMesh(std::vector<RenderVertex>& vertices, std::vector<uint32_t>& indices,
+                 grid::Aabb& bounds) {
+    const std::filesystem::path dir =
+        std::filesystem::path(PROBEKIT_TEST_OUTPUT_DIR).parent_path() / "gpu_scenes";
+    std::filesystem::create_directories(dir);
+    const std::filesystem::path gltf = dir / "cornell.gltf";
+    ASSERT_TRUE(baker::writeGeneratedScene("cornell", gltf).ok());
+    Result<baker::Scene> scene = baker::loadGltf(gltf);
+    ASSERT_TRUE(scene.ok()) << scene.error().message;
+    const baker::Scene& s = scene.value();
+    for (uint32_t t = 0; t < s.triangles.size(); ++t) {
+        const glm::uvec3 tri = s.triangles[t];
+        const glm::vec3 a = s.positions[tri.x];
+        const glm::vec3 b = s.positions[tri.y];
+        const glm::vec3 c = s.positions[tri.z];
+        const glm::vec3 n = glm::normalize(glm::cross(b - a, c - a));
+        const glm::vec2 bary[3] = {{0, 0}, {1, 0}, {0, 1}};
+        const glm::vec3 corner[3] = {a, b, c};
+        for (int k = 0; k < 3; ++k) {
+            indices.push_back(uint32_t(vertices.size()));
+            vertices.push_back({corner[k], n, s.albedoAt(t, bary[k]), s.emissionAt(t, bary[k])});
+        }
+    }
+    bounds = s.bounds;
+}
+
+TEST_F(Renderer, CornellIrradianceMatchesTheCpuSampler) {
+    std::vector<RenderVertex> vertices;
+    std::vector<uint32_t> indices;
+    grid::Aabb bounds;
+    cornellMesh(vertices, indices, bounds);
+    ASSERT_FALSE(vertices.empty());
+    // The bundled example's two volumes (examples/cornell-bake.json): the whole box in half
+    // precision, and a higher-priority corner volume with a fade band. Their data is analytic:
+    // this test is about the GPU path reproducing the CPU sampler, whatever the data.
+    VolumeSpec box;
+    box.bounds = bounds;
+    box.resolution = glm::uvec3(8, 8, 8);
+    box.storage = Storage::Float16;
+    box.name = "box";
+    VolumeSpec corner;
+    corner.bounds = {glm::vec3(0.2f, 0.34f, 0.15f), glm::vec3(0.4f, 0.54f, 0.35f)};
+    corner.resolution = glm::uvec3(4, 4, 4);
+    corner.mode = grid::PositionMode::Corner;
+    corner.priority = 1;
+    corner.fade = 0.05f;
+    corner.name = "light-corner";
+    const std::vector<Volume> volumes{
+        makeTestVolume(box, skyAndLight({0.2f, 0.2f, 0.2f}, {0.28f, 0.54f, 0.28f}, 0.5f)),
+        makeTestVolume(corner, skyAndLight({0.1f, 0.15f, 0.1f}, {0.3f, 0.5f, 0.2f}, 0.2f))};
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+    const VolumeSet cpu(volumes);
+    ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+
+    FrameSettings settings;
+    settings.width = 160;
+    settings.height = 120;
+    settings.camera = runtime::frameBounds(bounds, 40.0f, 160.0f / 120.0f);
+    settings.view = RenderView::Irradiance;
+    settings.readbackGBuffer = true;
+    Result<Frame> frame = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(frame.ok()) << frame.error().message;
+    // Irradiance can approach zero in corners the light barely reaches: measure against at
+    // least 5% of the median pixel.
+    std::vector<float> magnitudes;
+    for (size_t i = 0; i < frame.value().color.size(); ++i) {
+        if (frame.value().position[i].w != 0.0f) {
+            magnitudes.push_back(maxAbs(glm::vec3(frame.value().color[i])));
+        }
+    }
+    ASSERT_GT(magnitudes.size(), size_t(160 * 120 / 2)) << "the default camera frames the box";
+    std::nth_element(magnitudes.begin(), magnitudes.begin() + long(magnitudes.size() / 2),
+                     magnitudes.end());
+    const float floor = 0.05f * magnitudes[magnitudes.size() / 2];
+    size_t failures = 0;
+    float worst = 0.0f;
+    for (size_t i = 0; i < frame.value().color.size(); ++i) {
+        if (frame.value().position[i].w == 0.0f) {
+            continue;
+        }
+        const glm::vec3 p(frame.value().position[i]);
+        const glm::vec3 n = glm::normalize(glm::vec3(frame.value().normal[i]));
+        const glm::vec3 want = cpu.irradiance(p, n);
+        const float error =
+            maxAbs(glm::vec3(frame.value().color[i]) - want) / std::max(maxAbs(want), floor);
+        worst = std::max(worst, error);
+        failures += error <= kHalfRelative ? 0 : 1;
+    }
+    std::printf("[ figures  ] cornell irradiance view: %zu pixels vs VolumeSet::irradiance, max "
+                "relative error %.3g (tolerance %.0e)\n",
+                magnitudes.size(), double(worst), double(kHalfRelative));
+    if (failures > 0) {
+        const std::string path = failureOutputPath("cornell_irradiance.pfm");
+        writePfm(path, frame.value());
+        ADD_FAILURE() << failures << " pixels differ from the CPU sampler (worst " << worst
+                      << "); image in " << path;
+    }
+
+    // The shaded view shows the emitter (radiance 17, 12, 4, plus whatever it reflects): no
+    // reflecting surface comes near that under this lighting (E < 5 W/m^2 almost everywhere).
+    settings.view = RenderView::Shaded;
+    Result<Frame> shaded = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(shaded.ok());
+    float brightest = 0.0f;
+    for (const glm::vec4& c : shaded.value().color) {
+        brightest = std::max(brightest, c.x);
+    }
+    EXPECT_GT(brightest, 15.0f) << "the Cornell emitter is in view of the default camera";
+}
+
+// Pixel under a world point, as the renderer projects it.
+glm::ivec2 project(const FrameSettings& s, glm::vec3 world) {
+    const runtime::Camera& cam = s.camera;
+    glm::mat4 projection =
+        glm::perspectiveRH_ZO(glm::radians(cam.verticalFovDeg), float(s.width) / float(s.height),
+                              cam.nearPlane, cam.farPlane);
+    projection[1][1] *= -1.0f;
+    const glm::vec4 clip =
+        projection * glm::lookAtRH(cam.eye, cam.target, cam.up) * glm::vec4(world, 1.0f);
+    const glm::vec2 ndc = glm::vec2(clip) / clip.w;
+    return glm::ivec2((ndc * 0.5f + 0.5f) * glm::vec2(s.width, s.height));
+}
+
+TEST_F(Renderer, ProbeSpheresShowTheirOwnShAndValidity) {
+    VolumeSpec spec;
+    spec.bounds = {glm::vec3(-1.0f), glm::vec3(1.0f)};
+    spec.resolution = glm::uvec3(4, 4, 4);
+    const Volume volume =
+        makeTestVolume(spec, skyAndLight({0.3f, 0.4f, 0.6f}, {0.3f, 1.6f, -0.4f}, 3.0f), 5);
+    const std::vector<Volume> volumes{volume};
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+    ASSERT_TRUE(renderer().setMeshes({}, {}).ok());
+
+    FrameSettings settings;
+    settings.width = 200;
+    settings.height = 200;
+    settings.camera.eye = glm::vec3(0.4f, 0.7f, 4.0f);
+    settings.camera.target = glm::vec3(0.0f);
+    settings.view = RenderView::Probes;
+    settings.readbackGBuffer = true;
+    Result<Frame> probes = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(probes.ok()) << probes.error().message;
+    settings.view = RenderView::Validity;
+    Result<Frame> validity = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(validity.ok()) << validity.error().message;
+
+    const grid::GridLayout& layout = volume.desc.grid;
+    const float radius = 0.15f * layout.spacing().x;
+    size_t checked = 0;
+    size_t invalid_seen = 0;
+    for (size_t i = 0; i < layout.probeCount(); ++i) {
+        const glm::vec3 center = layout.probeWorld(layout.probeCoords(i));
+        const glm::ivec2 px = project(settings, center);
+        const size_t at = size_t(px.x) + size_t(settings.width) * size_t(px.y);
+        const glm::vec4 position = probes.value().position[at];
+        // Only probes whose own sphere is visible at their centre pixel.
+        if (position.w == 0.0f || glm::length(glm::vec3(position) - center) > 1.01f * radius) {
+            continue;
+        }
+        ++checked;
+        const glm::vec3 n = glm::normalize(glm::vec3(probes.value().normal[at]));
+        // A white Lambertian sphere lit by the probe's coefficients: E / pi.
+        const glm::vec3 want = sh::irradiance(volume.probe(i), volume.desc.shOrder, n) / sh::kPi;
+        const glm::vec3 got(probes.value().color[at]);
+        EXPECT_LE(maxAbs(got - want), kIrradianceRelative * maxAbs(want)) << "probe " << i;
+        const glm::vec3 v(validity.value().color[at]);
+        if (volume.validity[i] == kProbeInvalid) {
+            ++invalid_seen;
+            EXPECT_GT(v.x, 0.2f) << "invalid probe " << i << " is red";
+            EXPECT_LT(v.y, 0.1f * v.x);
+            EXPECT_LT(v.z, 0.1f * v.x);
+        } else {
+            EXPECT_EQ(v, got) << "valid probe " << i << " looks as in the probes view";
+        }
+    }
+    EXPECT_GT(checked, size_t(20));
+    EXPECT_GT(invalid_seen, size_t(2));
+}
+
+TEST_F(Renderer, DynamicUpdatesShowInTheNextFrameOnly) {
+    const std::vector<Volume> volumes{makeTestVolume(
+        planeVolumeSpec(), skyAndLight({0.3f, 0.4f, 0.6f}, {0.3f, 1.5f, -0.4f}, 4.0f))};
+    const Volume other = makeTestVolume(planeVolumeSpec(),
+                                        skyAndLight({0.6f, 0.2f, 0.1f}, {-0.5f, 1.2f, 0.4f}, 2.0f));
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok());
+    std::vector<RenderVertex> vertices;
+    std::vector<uint32_t> indices;
+    planeMesh(vertices, indices);
+    ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+    FrameSettings settings = planeView(64, 48);
+    settings.view = RenderView::Irradiance;
+
+    Result<Frame> before = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(gpu.value().replaceVolume(0, other, runtime::VolumeState::Secondary).ok());
+    gpu.value().setStateBlend(0, 1.0f);
+    Result<Frame> after = renderer().render(gpu.value(), settings);
+    gpu.value().setStateBlend(0, 0.0f);
+    Result<Frame> back = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(before.ok() && after.ok() && back.ok());
+    const VolumeSet cpu_after({other});
+    checkPixels(after.value(), kIrradianceRelative, "after_blend",
+                [&](glm::vec3 p, glm::vec3 n) { return cpu_after.irradiance(p, n); });
+    EXPECT_EQ(before.value().color, back.value().color) << "blend 0 restores the first state";
+}
+
+TEST_F(Renderer, TimesEachPass) {
+    if (context().timestampPeriodNs() == 0.0) {
+        GTEST_SKIP() << "the queue writes no timestamps on " << context().deviceInfo().name;
+    }
+    const std::vector<Volume> volumes{makeTestVolume(
+        planeVolumeSpec(), skyAndLight({0.3f, 0.4f, 0.6f}, {0.3f, 1.5f, -0.4f}, 4.0f))};
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok());
+    std::vector<RenderVertex> vertices;
+    std::vector<uint32_t> indices;
+    planeMesh(vertices, indices);
+    ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+    FrameSettings settings = planeView(64, 48);
+    settings.readbackColor = false;
+    settings.readbackGBuffer = false;
+    for (bool fetch_only : {false, true}) {
+        settings.fetchOnly = fetch_only;
+        Result<Frame> frame = renderer().render(gpu.value(), settings);
+        ASSERT_TRUE(frame.ok());
+        EXPECT_GT(frame.value().timings.gbufferMs, 0.0);
+        EXPECT_GT(frame.value().timings.shadeMs, 0.0);
+        EXPECT_TRUE(frame.value().color.empty());
+    }
+}
+
+TEST_F(Renderer, RejectsBadInput) {
+    std::vector<RenderVertex> vertices(3);
+    EXPECT_EQ(renderer().setMeshes(vertices, std::vector<uint32_t>{0, 1}).error().code,
+              ErrorCode::OutOfRange);
+    EXPECT_EQ(renderer().setMeshes(vertices, std::vector<uint32_t>{0, 1, 3}).error().code,
+              ErrorCode::OutOfRange);
+    const std::vector<Volume> volumes{makeTestVolume(
+        planeVolumeSpec(), skyAndLight({0.3f, 0.4f, 0.6f}, {0.3f, 1.5f, -0.4f}, 4.0f))};
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok());
+    FrameSettings settings = planeView(0, 10);
+    EXPECT_EQ(renderer().render(gpu.value(), settings).error().code, ErrorCode::OutOfRange);
+    settings = planeView(8, 8);
+    settings.lights.resize(runtime::kMaxRenderLights + 1);
+    EXPECT_EQ(renderer().render(gpu.value(), settings).error().code, ErrorCode::OutOfRange);
+    settings = planeView(8, 8);
+    settings.camera.target = settings.camera.eye;
+    EXPECT_EQ(renderer().render(gpu.value(), settings).error().code, ErrorCode::InvalidArgument);
+}
+
+} // namespace

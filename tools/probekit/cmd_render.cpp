@@ -1,0 +1,401 @@
+// `probekit render`: the runtime's headless Vulkan renderer on a glTF scene lit by a .pvol.
+//
+// The scene is loaded here through probekit::baker and flattened to plain triangles (face
+// normals, per-vertex albedo and emission), so probekit::runtime never sees glTF; images are
+// written here with OpenImageIO, which the runtime does not link either.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include <OpenImageIO/imageio.h>
+#include <glm/geometric.hpp>
+#include <nlohmann/json.hpp>
+
+#include "commands.hpp"
+#include "probekit/baker/scene.hpp"
+#include "probekit/formats/pvol.hpp"
+#include "probekit/runtime/gpu_context.hpp"
+#include "probekit/runtime/gpu_volumes.hpp"
+#include "probekit/runtime/renderer.hpp"
+
+namespace probekit::cli {
+namespace {
+
+constexpr int kWarmupFrames = 3;      // lavapipe compiles pipelines on first use
+constexpr int kUploadRepetitions = 5; // --bench: uploads timed per volume
+
+struct RenderOptions {
+    std::string scene;
+    std::string volumes;
+    std::string output;
+    std::vector<float> camera; // eye x,y,z, target x,y,z; empty = frame the scene
+    float fovDeg = 40.0f;
+    std::vector<uint32_t> size{640, 480};
+    std::string view = "shaded";
+    float exposure = 0.0f;
+    int bench = 0;
+    bool directLight = false;
+    float normalOffset = 0.0f;
+};
+
+std::string extensionOf(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
+    return ext;
+}
+
+// Flat triangles, each with its face normal and the material's albedo and emission at its
+// corners (textures sampled per vertex). Degenerate triangles have no normal and are skipped.
+void flatten(const baker::Scene& scene, std::vector<runtime::RenderVertex>& vertices,
+             std::vector<uint32_t>& indices) {
+    const glm::vec2 corner_bary[3] = {{0.0f, 0.0f}, {1.0f, 0.0f}, {0.0f, 1.0f}};
+    for (uint32_t t = 0; t < scene.triangles.size(); ++t) {
+        const glm::uvec3 tri = scene.triangles[t];
+        const glm::vec3 p[3] = {scene.positions[tri.x], scene.positions[tri.y],
+                                scene.positions[tri.z]};
+        const glm::vec3 cross = glm::cross(p[1] - p[0], p[2] - p[0]);
+        const float length = glm::length(cross);
+        if (!(length > 0.0f) || !std::isfinite(length)) {
+            continue;
+        }
+        for (int k = 0; k < 3; ++k) {
+            indices.push_back(uint32_t(vertices.size()));
+            vertices.push_back({p[k], cross / length, scene.albedoAt(t, corner_bary[k]),
+                                scene.emissionAt(t, corner_bary[k])});
+        }
+    }
+}
+
+runtime::PunctualLight toRuntime(const baker::PunctualLight& light) {
+    runtime::PunctualLight out;
+    out.type = light.type == baker::LightType::Point  ? runtime::LightType::Point
+               : light.type == baker::LightType::Spot ? runtime::LightType::Spot
+                                                      : runtime::LightType::Directional;
+    out.position = light.position;
+    out.direction = light.direction;
+    out.intensity = light.intensity;
+    out.range = light.range;
+    out.innerConeCos = light.innerConeCos;
+    out.outerConeCos = light.outerConeCos;
+    return out;
+}
+
+double median(std::vector<double> values) {
+    std::sort(values.begin(), values.end());
+    const size_t n = values.size();
+    return n % 2 == 1 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+}
+
+double millisecondsSince(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+        .count();
+}
+
+float srgbEncode(float linear) {
+    const float c = std::clamp(linear, 0.0f, 1.0f);
+    return c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
+}
+
+// Writes RGB (scaled by 2^EV) as 8-bit sRGB PNG or float EXR, atomically: a temporary file in
+// the same directory, renamed over the target only once complete.
+bool writeImage(const std::string& path, const runtime::Frame& frame, float exposure,
+                std::string& error) {
+    const std::string ext = extensionOf(path);
+    const bool png = ext == ".png";
+    const float scale = std::exp2(exposure);
+    const size_t pixels = size_t(frame.width) * frame.height;
+    std::vector<float> linear(pixels * 3);
+    std::vector<uint8_t> encoded(png ? pixels * 3 : 0);
+    for (size_t i = 0; i < pixels; ++i) {
+        for (int c = 0; c < 3; ++c) {
+            const float v = frame.color[i][c] * scale;
+            linear[3 * i + size_t(c)] = v;
+            if (png) {
+                encoded[3 * i + size_t(c)] = uint8_t(std::lround(srgbEncode(v) * 255.0f));
+            }
+        }
+    }
+    const std::filesystem::path target(path);
+    const std::filesystem::path directory =
+        target.has_parent_path() ? target.parent_path() : std::filesystem::path(".");
+    const std::filesystem::path temp =
+        directory / ("." + target.filename().string() + ".tmp." + std::to_string(::getpid()));
+    std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(png ? "png" : "openexr");
+    if (!out) {
+        error = "no OpenImageIO writer for " + ext + " (" + OIIO::geterror() + ")";
+        return false;
+    }
+    OIIO::ImageSpec spec(int(frame.width), int(frame.height), 3,
+                         png ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT);
+    if (png) {
+        spec.attribute("oiio:ColorSpace", "sRGB");
+    }
+    const bool ok = out->open(temp.string(), spec) &&
+                    (png ? out->write_image(OIIO::TypeDesc::UINT8, encoded.data())
+                         : out->write_image(OIIO::TypeDesc::FLOAT, linear.data())) &&
+                    out->close();
+    if (!ok) {
+        error = "cannot write the image (" + out->geterror() + ")";
+        std::filesystem::remove(temp);
+        return false;
+    }
+    std::error_code rename_error;
+    std::filesystem::rename(temp, target, rename_error);
+    if (rename_error) {
+        error = "cannot rename the finished image into place (" + rename_error.message() + ")";
+        std::filesystem::remove(temp);
+        return false;
+    }
+    return true;
+}
+
+int fail(const std::string& message) {
+    std::fprintf(stderr, "probekit render: %s\n", message.c_str());
+    return kExitFailure;
+}
+
+int runRender(const RenderOptions& o) {
+    Result<baker::Scene> scene = baker::loadGltf(o.scene);
+    if (!scene) {
+        return fail(scene.error().message);
+    }
+    for (const std::string& w : scene.value().warnings) {
+        std::fprintf(stderr, "probekit render: warning: %s\n", w.c_str());
+    }
+    Result<PvolFile> file = readPvol(o.volumes);
+    if (!file) {
+        return fail(file.error().message);
+    }
+    const std::vector<Volume>& volumes = file.value().volumes;
+    if (volumes.empty() || volumes.size() > runtime::kMaxGpuVolumes) {
+        return fail(o.volumes + ": " + std::to_string(volumes.size()) +
+                    " volumes; the Vulkan runtime renders 1.." +
+                    std::to_string(runtime::kMaxGpuVolumes));
+    }
+
+    runtime::ContextOptions context_options;
+    context_options.onMessage = [](runtime::MessageSeverity severity, std::string_view message) {
+        if (severity != runtime::MessageSeverity::Info) {
+            std::fprintf(stderr, "probekit render: vulkan: %.*s\n", int(message.size()),
+                         message.data());
+        }
+    };
+    Result<std::unique_ptr<runtime::GpuContext>> context =
+        runtime::GpuContext::create(context_options);
+    if (!context) {
+        return fail(context.error().message);
+    }
+    runtime::GpuContext& gpu = *context.value();
+
+    const auto upload_start = std::chrono::steady_clock::now();
+    Result<runtime::GpuVolumeSet> set = runtime::GpuVolumeSet::create(gpu, volumes);
+    if (!set) {
+        return fail(o.volumes + ": " + set.error().message);
+    }
+    const double create_ms = millisecondsSince(upload_start);
+    set.value().setNormalOffset(o.normalOffset);
+
+    std::vector<runtime::RenderVertex> vertices;
+    std::vector<uint32_t> indices;
+    flatten(scene.value(), vertices, indices);
+    Result<runtime::Renderer> renderer = runtime::Renderer::create(gpu);
+    if (!renderer) {
+        return fail(renderer.error().message);
+    }
+    if (auto r = renderer.value().setMeshes(vertices, indices); !r) {
+        return fail(r.error().message);
+    }
+
+    runtime::FrameSettings settings;
+    settings.width = o.size[0];
+    settings.height = o.size[1];
+    const float aspect = float(settings.width) / float(settings.height);
+    if (o.camera.empty()) {
+        settings.camera = runtime::frameBounds(scene.value().bounds, o.fovDeg, aspect);
+    } else {
+        settings.camera.eye = glm::vec3(o.camera[0], o.camera[1], o.camera[2]);
+        settings.camera.target = glm::vec3(o.camera[3], o.camera[4], o.camera[5]);
+        settings.camera.verticalFovDeg = o.fovDeg;
+        const glm::vec3 forward = settings.camera.target - settings.camera.eye;
+        if (!(glm::length(forward) > 0.0f)) {
+            return fail("--camera: the eye and the target coincide");
+        }
+        // Looking straight up or down: +Y cannot be "up", so -Z is.
+        if (glm::length(glm::cross(glm::normalize(forward), glm::vec3(0, 1, 0))) < 1e-4f) {
+            settings.camera.up = glm::vec3(0.0f, 0.0f, -1.0f);
+        }
+        const grid::Aabb& b = scene.value().bounds;
+        const float reach = glm::length(forward) + glm::length(b.size()) +
+                            glm::length(settings.camera.eye - b.center());
+        settings.camera.nearPlane = std::max(1e-4f, 1e-3f * reach);
+        settings.camera.farPlane = 2.0f * reach + 1.0f;
+    }
+    const std::string views[] = {"shaded", "irradiance", "probes", "validity"};
+    settings.view = runtime::RenderView(std::find(std::begin(views), std::end(views), o.view) -
+                                        std::begin(views));
+    settings.directLight = o.directLight;
+    if (o.directLight) {
+        for (const baker::PunctualLight& light : scene.value().lights) {
+            if (settings.lights.size() == runtime::kMaxRenderLights) {
+                std::fprintf(stderr,
+                             "probekit render: warning: %s: only the first %zu lights "
+                             "add direct light\n",
+                             o.scene.c_str(), runtime::kMaxRenderLights);
+                break;
+            }
+            settings.lights.push_back(toRuntime(light));
+        }
+    }
+
+    nlohmann::json bench;
+    if (o.bench > 0) {
+        runtime::FrameSettings timed = settings;
+        timed.readbackColor = false;
+        // Warm-up: pipelines compile on first use (lavapipe) and caches fill.
+        for (int i = 0; i < kWarmupFrames; ++i) {
+            for (bool fetch_only : {false, true}) {
+                timed.fetchOnly = fetch_only;
+                if (auto r = renderer.value().render(set.value(), timed); !r) {
+                    return fail(r.error().message);
+                }
+            }
+        }
+        // Shading and fetch-only frames alternate, so both see the same machine load.
+        std::vector<double> gbuffer_ms, shade_ms, fetch_ms;
+        for (int i = 0; i < o.bench; ++i) {
+            for (bool fetch_only : {false, true}) {
+                timed.fetchOnly = fetch_only;
+                Result<runtime::Frame> frame = renderer.value().render(set.value(), timed);
+                if (!frame) {
+                    return fail(frame.error().message);
+                }
+                (fetch_only ? fetch_ms : shade_ms).push_back(frame.value().timings.shadeMs);
+                if (!fetch_only) {
+                    gbuffer_ms.push_back(frame.value().timings.gbufferMs);
+                }
+            }
+        }
+        // Upload throughput: re-uploading every volume (staging copy + GPU copy + wait)
+        // against a plain memcpy of the same bytes.
+        size_t upload_bytes = 0;
+        for (const Volume& v : volumes) {
+            upload_bytes += v.texelBytes();
+        }
+        std::vector<double> upload_ms, memcpy_ms;
+        std::vector<uint8_t> source(upload_bytes, 1);
+        std::vector<uint8_t> destination(upload_bytes);
+        for (int r = 0; r < kUploadRepetitions; ++r) {
+            const auto start = std::chrono::steady_clock::now();
+            for (size_t i = 0; i < volumes.size(); ++i) {
+                if (auto u = set.value().replaceVolume(i, volumes[i]); !u) {
+                    return fail(u.error().message);
+                }
+            }
+            upload_ms.push_back(millisecondsSince(start));
+            const auto copy_start = std::chrono::steady_clock::now();
+            std::memcpy(destination.data(), source.data(), upload_bytes);
+            memcpy_ms.push_back(millisecondsSince(copy_start));
+            source[size_t(r) % upload_bytes] ^= destination[upload_bytes - 1];
+        }
+        const double shade = median(shade_ms);
+        const double fetch = median(fetch_ms);
+        const double upload = median(upload_ms);
+        const double copy = std::max(median(memcpy_ms), 1e-6);
+        bench = {{"device", gpu.deviceInfo().name},
+                 {"width", settings.width},
+                 {"height", settings.height},
+                 {"view", o.view},
+                 {"volumes", volumes.size()},
+                 {"frames", o.bench},
+                 {"gbuffer_ms", median(gbuffer_ms)},
+                 {"shade_ms", shade},
+                 {"fetch_only_ms", fetch},
+                 {"shade_over_fetch", shade / fetch},
+                 {"create_ms", create_ms},
+                 {"upload_bytes", upload_bytes},
+                 {"upload_ms", upload},
+                 {"memcpy_ms", copy},
+                 {"upload_gb_per_s", double(upload_bytes) / (upload * 1e6)},
+                 {"memcpy_gb_per_s", double(upload_bytes) / (copy * 1e6)},
+                 {"upload_over_memcpy", upload / copy}};
+    }
+
+    Result<runtime::Frame> frame = renderer.value().render(set.value(), settings);
+    if (!frame) {
+        return fail(frame.error().message);
+    }
+    std::string error;
+    if (!writeImage(o.output, frame.value(), o.exposure, error)) {
+        return fail(o.output + ": " + error);
+    }
+    if (o.bench > 0) {
+        std::printf("%s\n", bench.dump().c_str());
+    } else {
+        std::printf("wrote %s: %ux%u, %s view, %zu volume%s on %s; G-buffer %.2f ms, shading "
+                    "%.2f ms\n",
+                    o.output.c_str(), settings.width, settings.height, o.view.c_str(),
+                    volumes.size(), volumes.size() == 1 ? "" : "s", gpu.deviceInfo().name.c_str(),
+                    frame.value().timings.gbufferMs, frame.value().timings.shadeMs);
+    }
+    return kExitOk;
+}
+
+} // namespace
+
+void addRenderCommand(CLI::App& app, Command& selected) {
+    auto o = std::make_shared<RenderOptions>();
+    CLI::App* cmd = app.add_subcommand(
+        "render", "Render a glTF scene lit by a .pvol with the Vulkan runtime (headless)");
+    cmd->add_option("SCENE", o->scene, "glTF scene (.gltf or .glb)")->required();
+    cmd->add_option("VOLUME", o->volumes, "the .pvol lighting it")->required();
+    cmd->add_option("-o,--output", o->output, "image to write: .png (8-bit sRGB) or .exr (float)")
+        ->required()
+        ->check([](const std::string& path) {
+            const std::string ext = extensionOf(path);
+            return ext == ".png" || ext == ".exr" ? std::string()
+                                                  : "the output must end in .png or .exr";
+        });
+    cmd->add_option("--camera", o->camera,
+                    "eye_x,eye_y,eye_z,at_x,at_y,at_z in metres (default: frame the scene, "
+                    "looking along +Z)")
+        ->delimiter(',')
+        ->expected(6);
+    cmd->add_option("--fov", o->fovDeg, "vertical field of view, degrees")
+        ->check(CLI::Range(1.0f, 170.0f))
+        ->capture_default_str();
+    cmd->add_option("--size", o->size, "image width,height in pixels")
+        ->delimiter(',')
+        ->expected(2)
+        ->check(CLI::Range(1u, 16384u))
+        ->capture_default_str();
+    cmd->add_option("--view", o->view,
+                    "shaded (albedo/pi x E + emission), irradiance (E, W/m^2), probes (spheres "
+                    "lit by their own SH), validity (invalid probes red)")
+        ->check(CLI::IsMember({"shaded", "irradiance", "probes", "validity"}))
+        ->capture_default_str();
+    cmd->add_option("--exposure", o->exposure, "scale by 2^EV before writing")
+        ->capture_default_str();
+    cmd->add_option("--bench", o->bench,
+                    "after warm-up, time N frames of the shading pass and of its fetch-only "
+                    "floor, and the volume upload; print one JSON line")
+        ->check(CLI::Range(1, 100000));
+    cmd->add_flag("--direct-light", o->directLight,
+                  "add unshadowed direct light from the scene's punctual lights (for volumes "
+                  "baked without it)");
+    cmd->add_option("--normal-offset", o->normalOffset,
+                    "metres along the normal to move each shading point before sampling "
+                    "(against self-leaking; 0 matches probekit sample)")
+        ->capture_default_str();
+    cmd->callback([o, &selected] { selected = [o] { return runRender(*o); }; });
+}
+
+} // namespace probekit::cli
