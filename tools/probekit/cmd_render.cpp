@@ -89,6 +89,26 @@ runtime::PunctualLight toRuntime(const baker::PunctualLight& light) {
     return out;
 }
 
+// What the default camera frames: the scene, or the volumes when the scene has no triangles.
+grid::Aabb framedBox(const baker::Scene& scene, const std::vector<Volume>& volumes) {
+    if (scene.hasGeometry()) {
+        return scene.bounds;
+    }
+    grid::Aabb box{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+    for (const Volume& v : volumes) {
+        const grid::Aabb& b = v.desc.grid.bounds();
+        for (int corner = 0; corner < 8; ++corner) {
+            const glm::vec3 local((corner & 1) ? b.max.x : b.min.x,
+                                  (corner & 2) ? b.max.y : b.min.y,
+                                  (corner & 4) ? b.max.z : b.min.z);
+            const glm::vec3 world = v.desc.grid.frame().toWorld(local);
+            box.min = glm::min(box.min, world);
+            box.max = glm::max(box.max, world);
+        }
+    }
+    return box;
+}
+
 double median(std::vector<double> values) {
     std::sort(values.begin(), values.end());
     const size_t n = values.size();
@@ -219,8 +239,9 @@ int runRender(const RenderOptions& o) {
     settings.width = o.size[0];
     settings.height = o.size[1];
     const float aspect = float(settings.width) / float(settings.height);
+    const grid::Aabb framed = framedBox(scene.value(), volumes);
     if (o.camera.empty()) {
-        settings.camera = runtime::frameBounds(scene.value().bounds, o.fovDeg, aspect);
+        settings.camera = runtime::frameBounds(framed, o.fovDeg, aspect);
     } else {
         settings.camera.eye = glm::vec3(o.camera[0], o.camera[1], o.camera[2]);
         settings.camera.target = glm::vec3(o.camera[3], o.camera[4], o.camera[5]);
@@ -233,9 +254,8 @@ int runRender(const RenderOptions& o) {
         if (glm::length(glm::cross(glm::normalize(forward), glm::vec3(0, 1, 0))) < 1e-4f) {
             settings.camera.up = glm::vec3(0.0f, 0.0f, -1.0f);
         }
-        const grid::Aabb& b = scene.value().bounds;
-        const float reach = glm::length(forward) + glm::length(b.size()) +
-                            glm::length(settings.camera.eye - b.center());
+        const float reach = glm::length(forward) + glm::length(framed.size()) +
+                            glm::length(settings.camera.eye - framed.center());
         settings.camera.nearPlane = std::max(1e-4f, 1e-3f * reach);
         settings.camera.farPlane = 2.0f * reach + 1.0f;
     }
