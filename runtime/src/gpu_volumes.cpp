@@ -228,7 +228,8 @@ gpu::PkVolumeSetGpu GpuVolumeSet::Impl::packUniforms() const {
     std::vector<float> blends;
     for (const Slot& slot : slots) {
         descs.push_back(slot.desc);
-        blends.push_back(slot.states[1].allocated ? slot.blend : 0.0f);
+        // A second state counts once it holds data (an upload that failed leaves none).
+        blends.push_back(slot.states[1].initialised ? slot.blend : 0.0f);
     }
     return packVolumeSetGpu(descs, blends, normalOffset);
 }
@@ -484,7 +485,7 @@ const std::vector<uint8_t>& GpuVolumeSet::validity(size_t index) const {
 
 bool GpuVolumeSet::hasSecondState(size_t index) const {
     assert(index < size());
-    return m_impl->slots[index].states[1].allocated;
+    return m_impl->slots[index].states[1].initialised;
 }
 
 float GpuVolumeSet::stateBlend(size_t index) const {
