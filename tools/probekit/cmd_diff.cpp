@@ -53,14 +53,11 @@ void addDiffCommand(CLI::App& app, Command& selected) {
             const runtime::VolumeError& v = e.value();
             const double value = o->metric == "rel_rmse" ? v.relRmse : v.maxProbeErr;
             const bool pass = o->tolerance < 0.0 || value <= o->tolerance;
-            nlohmann::json j = {{"rel_rmse", v.relRmse},
-                                {"max_probe_err", v.maxProbeErr},
-                                {"max_abs_err", v.maxAbsErr},
-                                {"probes_compared", v.probesCompared},
-                                {"worst_volume", v.worstVolume},
-                                {"worst_probe", v.worstProbe},
-                                {"metric", o->metric},
-                                {"value", value}};
+            nlohmann::json j = {
+                {"rel_rmse", v.relRmse},         {"max_probe_err", v.maxProbeErr},
+                {"max_abs_err", v.maxAbsErr},    {"probes_compared", v.probesCompared},
+                {"worst_volume", v.worstVolume}, {"worst_probe", v.worstProbe},
+                {"metric", o->metric},           {"value", value}};
             if (o->tolerance >= 0.0) {
                 j["tolerance"] = o->tolerance;
                 j["pass"] = pass;
