@@ -13,6 +13,7 @@
 #include <glm/gtc/matrix_access.hpp>
 #include <glm/gtc/quaternion.hpp>
 
+#include "lpv_method.hpp"
 #include "path_integrator.hpp"
 #include "probekit/baker/bake.hpp"
 #include "ray_tracer.hpp"
@@ -293,7 +294,7 @@ uint64_t estimateBakeMemory(const std::vector<VolumeDesc>& volumes) {
 
 Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const BakeOptions& options) {
     const auto start = std::chrono::steady_clock::now();
-    if (config.method != "path" && config.method != "vpl") {
+    if (config.method != "path" && config.method != "vpl" && config.method != "lpv") {
         return makeError(ErrorCode::InvalidArgument,
                          "method: \"" + config.method + "\" is not available in this build");
     }
@@ -335,6 +336,15 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
                              config.seed);
         result.stats.vpls = vpl_gatherer->vpls().size();
     }
+    // Method lpv: the lights the grids carry, once for the whole bake; each volume then
+    // propagates its own cascades and every probe adds them to its direct light.
+    std::optional<LpvLights> lpv_lights;
+    if (config.method == "lpv") {
+        lpv_lights = prepareLpvLights(scene, *tracer.value(), config.lpv, descs.value(),
+                                      config.seed, result.stats.threads);
+        rays.fetch_add(lpv_lights->rays);
+        result.stats.vpls = lpv_lights->vpls;
+    }
     auto report = [&] {
         if (options.progress) {
             options.progress(BakeProgress{
@@ -348,6 +358,14 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
         PathSettings settings;
         settings.samples = vpl_config ? vpl_config->directSamples : config.path.samples;
         settings.maxBounces = vpl_config ? 0 : config.path.maxBounces;
+        std::optional<LpvCascades> lpv_cascades;
+        if (lpv_lights) {
+            settings.samples = config.lpv.direct == LpvDirect::Traced ? config.lpv.directSamples
+                                                                      : kLpvValiditySamples;
+            settings.maxBounces = 0;
+            lpv_cascades.emplace(
+                propagateLpv(scene, *lpv_lights, config.lpv, desc, result.stats.threads));
+        }
         const PathIntegrator integrator(scene, *tracer.value(), settings, desc.shOrder);
 
         const size_t count = desc.grid.probeCount();
@@ -369,6 +387,9 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
                 for (size_t i = begin; i < end; ++i) {
                     const glm::vec3 p = desc.grid.probeWorld(desc.grid.probeCoords(i));
                     ProbeSample s = integrator.bakeProbe(p, config.seed, vi, i);
+                    if (lpv_cascades) {
+                        s.sh = lpvProbe(*lpv_cascades, config.lpv, p, s.sh);
+                    }
                     if (vpl_gatherer) {
                         const VplGatherResult g = vpl_gatherer->gather(p, desc.shOrder, s.sh);
                         s.sh += g.sh;
@@ -448,6 +469,9 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     }
     if (vpl_config) {
         resolved.vpl = *vpl_config; // the chosen count and clamp distance
+    }
+    if (lpv_lights) {
+        resolved.lpv.iterations = resolveLpvSettings(config.lpv).iterations;
     }
     m.parametersJson = describeConfig(resolved);
     m.seed = config.seed;

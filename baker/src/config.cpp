@@ -353,13 +353,78 @@ VplConfig parseVpl(const Reader& r, const Json& j, const std::string& path) {
     return v;
 }
 
+LpvConfig parseLpv(const Reader& r, const Json& j, const std::string& path) {
+    r.checkKeys(j, path,
+                {"grid", "cascades", "cascade_ratio", "iterations", "propagation_weight",
+                 "fade_cells", "occlusion", "direct", "direct_samples", "vpl_count", "intensity"});
+    LpvConfig l;
+    if (j.contains("grid")) {
+        l.grid = uint32_t(r.unsignedInt(j["grid"], path + ".grid", 4, 256));
+    }
+    if (j.contains("cascades")) {
+        l.cascades = uint32_t(r.unsignedInt(j["cascades"], path + ".cascades", 1, 4));
+    }
+    if (j.contains("cascade_ratio")) {
+        const double ratio = r.number(j["cascade_ratio"], path + ".cascade_ratio");
+        if (ratio < 1.25 || ratio > 4.0) {
+            r.fail(path + ".cascade_ratio",
+                   "must be in [1.25, 4] (got " + j["cascade_ratio"].dump() + ")");
+        }
+        l.cascadeRatio = float(ratio);
+    }
+    if (j.contains("iterations")) {
+        const Json& n = j["iterations"];
+        if (n.is_string()) {
+            r.choice(n, path + ".iterations", {"auto"});
+        } else {
+            l.iterations = uint32_t(r.unsignedInt(n, path + ".iterations", 1, 4096));
+        }
+    }
+    if (j.contains("propagation_weight")) {
+        const double w = r.positive(j["propagation_weight"], path + ".propagation_weight");
+        if (w > 1.0) {
+            r.fail(path + ".propagation_weight", "must be in (0, 1] (1 passes all light on)");
+        }
+        l.propagationWeight = float(w);
+    }
+    if (j.contains("fade_cells")) {
+        const double f = r.number(j["fade_cells"], path + ".fade_cells");
+        if (f < 0.0 || f > 64.0) {
+            r.fail(path + ".fade_cells", "must be in [0, 64]");
+        }
+        l.fadeCells = float(f);
+    }
+    if (j.contains("occlusion")) {
+        l.occlusion = r.choice(j["occlusion"], path + ".occlusion", {"on", "off"}) == "on";
+    }
+    if (j.contains("direct")) {
+        l.direct = r.choice(j["direct"], path + ".direct", {"traced", "propagated"}) == "traced"
+                       ? LpvDirect::Traced
+                       : LpvDirect::Propagated;
+    }
+    if (j.contains("direct_samples")) {
+        l.directSamples =
+            uint32_t(r.unsignedInt(j["direct_samples"], path + ".direct_samples", 1, 1u << 24));
+    }
+    if (j.contains("vpl_count")) {
+        l.vplCount = uint32_t(r.unsignedInt(j["vpl_count"], path + ".vpl_count", 1, 1u << 24));
+    }
+    if (j.contains("intensity")) {
+        l.intensity = float(r.number(j["intensity"], path + ".intensity"));
+        if (l.intensity < 0.0f) {
+            r.fail(path + ".intensity", "must be >= 0");
+        }
+    }
+    return l;
+}
+
 BakeConfig parseTop(const Reader& r, const Json& j, const std::filesystem::path& base_dir) {
-    r.checkKeys(
-        j, "",
-        {"method", "seed", "path", "vpl", "environment", "volumes", "validity", "max_memory_mb"});
+    r.checkKeys(j, "",
+                {"method", "seed", "path", "vpl", "lpv", "environment", "volumes", "validity",
+                 "max_memory_mb"});
     BakeConfig c;
     if (j.contains("method")) {
-        c.method = r.choice(j["method"], "method", {"path", "vpl"});
+        c.method = r.choice(j["method"], "method", {"path", "vpl", "lpv"});
     }
     if (j.contains("seed")) {
         c.seed = r.unsignedInt(j["seed"], "seed", 0, UINT64_MAX);
@@ -377,6 +442,9 @@ BakeConfig parseTop(const Reader& r, const Json& j, const std::filesystem::path&
     }
     if (j.contains("vpl")) {
         c.vpl = parseVpl(r, j["vpl"], "vpl");
+    }
+    if (j.contains("lpv")) {
+        c.lpv = parseLpv(r, j["lpv"], "lpv");
     }
     if (j.contains("environment")) {
         c.environment = parseEnvironment(r, j["environment"], "environment", base_dir);
@@ -460,6 +528,10 @@ std::string_view toString(VplSampling sampling) {
     return "unknown";
 }
 
+std::string_view toString(LpvDirect direct) {
+    return direct == LpvDirect::Traced ? "traced" : "propagated";
+}
+
 Result<BakeConfig> parseBakeConfig(std::string_view json_text, std::string_view source,
                                    const std::filesystem::path& base_dir) {
     Json j;
@@ -503,6 +575,20 @@ std::string describeConfig(const BakeConfig& c) {
                     {"cut_error", v.cutError}};
         j["vpl"]["count"] = v.count ? Json(*v.count) : Json("auto");
         j["vpl"]["clamp_distance"] = v.clampDistance ? Json(*v.clampDistance) : Json("auto");
+    }
+    if (c.method == "lpv") {
+        const LpvConfig& l = c.lpv;
+        j["lpv"] = {{"grid", l.grid},
+                    {"cascades", l.cascades},
+                    {"cascade_ratio", l.cascadeRatio},
+                    {"propagation_weight", l.propagationWeight},
+                    {"fade_cells", l.fadeCells},
+                    {"occlusion", l.occlusion ? "on" : "off"},
+                    {"direct", std::string(toString(l.direct))},
+                    {"direct_samples", l.directSamples},
+                    {"vpl_count", l.vplCount},
+                    {"intensity", l.intensity}};
+        j["lpv"]["iterations"] = l.iterations ? Json(*l.iterations) : Json("auto");
     }
     switch (c.environment.type) {
     case EnvironmentConfig::Type::Black:

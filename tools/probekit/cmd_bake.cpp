@@ -29,6 +29,11 @@ struct BakeOptionsCli {
     std::optional<std::string> vplShadows;
     std::optional<std::string> vplSampling;
     std::optional<uint32_t> vplBounces;
+    std::optional<uint32_t> lpvGrid;
+    std::optional<uint32_t> lpvIterations;
+    std::optional<uint32_t> lpvCascades;
+    std::optional<std::string> lpvOcclusion;
+    std::optional<std::string> lpvDirect;
     uint32_t threads = 0;
     std::vector<uint32_t> resolution;
     std::optional<float> density;
@@ -86,8 +91,10 @@ int runBake(const BakeOptionsCli& o) {
         config.method = *o.method;
     }
     if (o.samples) {
-        // For vpl the only per-probe directions are those of the direct light.
-        (config.method == "vpl" ? config.vpl.directSamples : config.path.samples) = *o.samples;
+        // For vpl and lpv the only per-probe directions are those of the direct light.
+        (config.method == "vpl"   ? config.vpl.directSamples
+         : config.method == "lpv" ? config.lpv.directSamples
+                                  : config.path.samples) = *o.samples;
     }
     if (o.bounces) {
         config.path.maxBounces = *o.bounces;
@@ -113,6 +120,22 @@ int runBake(const BakeOptionsCli& o) {
     }
     if (o.vplBounces) {
         config.vpl.bounces = *o.vplBounces;
+    }
+    if (o.lpvGrid) {
+        config.lpv.grid = *o.lpvGrid;
+    }
+    if (o.lpvIterations) {
+        config.lpv.iterations = *o.lpvIterations;
+    }
+    if (o.lpvCascades) {
+        config.lpv.cascades = *o.lpvCascades;
+    }
+    if (o.lpvOcclusion) {
+        config.lpv.occlusion = *o.lpvOcclusion == "on";
+    }
+    if (o.lpvDirect) {
+        config.lpv.direct =
+            *o.lpvDirect == "traced" ? baker::LpvDirect::Traced : baker::LpvDirect::Propagated;
     }
     if (o.maxMemoryMb) {
         config.maxMemoryBytes = *o.maxMemoryMb << 20;
@@ -188,6 +211,22 @@ int runBake(const BakeOptionsCli& o) {
                         std::string(baker::toString(v.clamp)).c_str(), *v.clampDistance,
                         config.vpl.clampDistance ? "" : ", auto: 2 sqrt(area / (pi count))",
                         v.shadows ? "on" : "off", double(v.cutError));
+        } else if (config.method == "lpv") {
+            const baker::LpvConfig& l = config.lpv;
+            const std::string direct = l.direct == baker::LpvDirect::Traced
+                                           ? "traced, " + std::to_string(l.directSamples) +
+                                                 " directions per probe (lpv.direct_samples)"
+                                           : "propagated through the grids";
+            std::printf("baking %s: method lpv, seed %llu\n"
+                        "  direct light: %s\n"
+                        "  %u VPLs, %u cascade(s) of %u cells on the longest axis (ratio %g), %u "
+                        "iterations%s, occlusion %s, propagation weight %g, fade %g cells, "
+                        "intensity %g\n",
+                        o.scene.c_str(), static_cast<unsigned long long>(config.seed),
+                        direct.c_str(), l.vplCount, l.cascades, l.grid, double(l.cascadeRatio),
+                        l.iterations ? *l.iterations : l.grid,
+                        l.iterations ? "" : " (auto: = grid)", l.occlusion ? "on" : "off",
+                        double(l.propagationWeight), double(l.fadeCells), double(l.intensity));
         } else {
             std::printf("baking %s: method %s, %u samples, %u bounces, seed %llu\n",
                         o.scene.c_str(), config.method.c_str(), config.path.samples,
@@ -278,9 +317,9 @@ void addBakeCommand(CLI::App& app, Command& selected) {
     cmd->add_option("-o,--output", o->output, "output .pvol")->required();
     cmd->add_option("--config", o->config, "bake config JSON (flags override it)");
     cmd->add_option("--method", o->method, "lighting method")
-        ->check(CLI::IsMember({"path", "vpl"}));
+        ->check(CLI::IsMember({"path", "vpl", "lpv"}));
     cmd->add_option("--samples", o->samples,
-                    "directions per probe (path: full paths; vpl: direct light only)")
+                    "directions per probe (path: full paths; vpl, lpv: direct light only)")
         ->check(CLI::Range(1u, 1u << 24));
     cmd->add_option("--bounces", o->bounces, "path: maximum bounces")->check(CLI::Range(0u, 1024u));
     cmd->add_option("--seed", o->seed, "random seed");
@@ -294,6 +333,17 @@ void addBakeCommand(CLI::App& app, Command& selected) {
         ->check(CLI::IsMember({"random", "stratified", "jittered"}));
     cmd->add_option("--vpl-bounces", o->vplBounces, "vpl: reflections per light path")
         ->check(CLI::Range(1u, 1024u));
+    cmd->add_option("--lpv-grid", o->lpvGrid, "lpv: cells along the longest axis of a cascade")
+        ->check(CLI::Range(4u, 256u));
+    cmd->add_option("--lpv-iterations", o->lpvIterations,
+                    "lpv: propagation steps (default: the grid size)")
+        ->check(CLI::Range(1u, 4096u));
+    cmd->add_option("--lpv-cascades", o->lpvCascades, "lpv: nested grids per volume")
+        ->check(CLI::Range(1u, 4u));
+    cmd->add_option("--lpv-occlusion", o->lpvOcclusion, "lpv: geometry volume")
+        ->check(CLI::IsMember({"on", "off"}));
+    cmd->add_option("--lpv-direct", o->lpvDirect, "lpv: direct light traced or propagated")
+        ->check(CLI::IsMember({"traced", "propagated"}));
     cmd->add_option("--threads", o->threads, "worker threads (0 = all cores)");
     auto* res = cmd->add_option("--resolution", o->resolution,
                                 "probes per axis X,Y,Z (powers of two), every volume")
