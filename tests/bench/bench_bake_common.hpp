@@ -5,7 +5,11 @@
 #include <map>
 #include <string>
 #include <thread>
+#include <vector>
 
+#include <glm/vec3.hpp>
+
+#include "probekit/baker/bake.hpp"
 #include "probekit/baker/scene.hpp"
 
 namespace probekit::bench {
@@ -15,5 +19,24 @@ std::map<std::string, double>& results();
 // The shared Cornell box (../shared/scenes/cornell-box), loaded once.
 const baker::Scene& cornellScene();
 uint32_t benchThreads();
+
+// The Cycles reference of the shared Cornell box (reference.json), loaded once: the points,
+// the 64 normals and E_L2 [point][normal].
+struct CornellReference {
+    std::vector<glm::vec3> points;
+    std::vector<glm::vec3> normals;
+    std::vector<std::vector<glm::dvec3>> irradianceL2;
+};
+const CornellReference& cornellReference();
+// One probe exactly at each reference point (a 1x1x1 centre-mode float volume around it), as
+// the baker test BakeCornell does.
+baker::BakeConfig referenceProbes();
+// E of each probe of a referenceProbes() bake at the reference normals: [point][normal].
+std::vector<std::vector<glm::dvec3>> probeIrradiance(const baker::BakeResult& r);
+// sqrt(sum |e - reference|^2 / sum |reference|^2) over points, normals and channels.
+double relRmse(const std::vector<std::vector<glm::dvec3>>& e,
+               const std::vector<std::vector<glm::dvec3>>& reference);
+// A bake of the shared Cornell box on benchThreads() threads.
+Result<baker::BakeResult> bakeCornell(const baker::BakeConfig& config);
 
 } // namespace probekit::bench

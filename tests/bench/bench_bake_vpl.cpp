@@ -11,101 +11,22 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
-#include <fstream>
 #include <vector>
 
 #include <benchmark/benchmark.h>
-#include <nlohmann/json.hpp>
 
 #include "bench_bake_common.hpp"
 #include "probekit/baker/bake.hpp"
-#include "probekit/runtime/sampler.hpp"
 
 using namespace probekit;
 using namespace probekit::baker;
+using bench::bakeCornell;
+using bench::cornellReference;
+using bench::probeIrradiance;
+using bench::referenceProbes;
+using bench::relRmse;
 
 namespace {
-
-struct Reference {
-    std::vector<glm::vec3> points;
-    std::vector<glm::vec3> normals;
-    std::vector<std::vector<glm::dvec3>> irradianceL2; // [point][normal]
-};
-
-const Reference& cornellReference() {
-    static const Reference reference = [] {
-        const auto path = std::filesystem::path(PROBEKIT_SHARED_DIR) / "scenes" / "cornell-box" /
-                          "reference.json";
-        std::ifstream in(path);
-        if (!in) {
-            std::fprintf(stderr, "bench: missing %s\n", path.string().c_str());
-            std::exit(1);
-        }
-        const nlohmann::json j = nlohmann::json::parse(in);
-        Reference r;
-        for (const auto& p : j["points"]) {
-            r.points.emplace_back(p[0].get<float>(), p[1].get<float>(), p[2].get<float>());
-        }
-        for (const auto& n : j["normals"]) {
-            r.normals.emplace_back(n[0].get<float>(), n[1].get<float>(), n[2].get<float>());
-        }
-        for (const auto& per_point : j["E_L2"]) {
-            std::vector<glm::dvec3> row;
-            for (const auto& e : per_point) {
-                row.emplace_back(e[0].get<double>(), e[1].get<double>(), e[2].get<double>());
-            }
-            r.irradianceL2.push_back(row);
-        }
-        return r;
-    }();
-    return reference;
-}
-
-// One probe exactly at each reference point (a 1x1x1 centre-mode volume around it).
-BakeConfig referenceProbes() {
-    BakeConfig c;
-    for (size_t i = 0; i < cornellReference().points.size(); ++i) {
-        VolumeConfig v;
-        v.name = "p";
-        v.name += std::to_string(i);
-        v.bounds.mode = BoundsMode::Custom;
-        v.bounds.min = cornellReference().points[i] - glm::vec3(0.05f);
-        v.bounds.max = cornellReference().points[i] + glm::vec3(0.05f);
-        v.resolution = glm::uvec3(1);
-        v.storage = Storage::Float32;
-        c.volumes.push_back(v);
-    }
-    return c;
-}
-
-// E_L2 of each probe at the reference normals: [point][normal].
-std::vector<std::vector<glm::dvec3>> probeIrradiance(const BakeResult& r) {
-    const Reference& ref = cornellReference();
-    std::vector<std::vector<glm::dvec3>> out;
-    for (size_t p = 0; p < ref.points.size(); ++p) {
-        const runtime::VolumeSet set({r.file.volumes[p]});
-        std::vector<glm::dvec3> row;
-        for (const glm::vec3& n : ref.normals) {
-            row.emplace_back(set.irradiance(ref.points[p], n));
-        }
-        out.push_back(row);
-    }
-    return out;
-}
-
-double relRmse(const std::vector<std::vector<glm::dvec3>>& e,
-               const std::vector<std::vector<glm::dvec3>>& reference) {
-    double num = 0.0, den = 0.0;
-    for (size_t p = 0; p < e.size(); ++p) {
-        for (size_t k = 0; k < e[p].size(); ++k) {
-            const glm::dvec3 d = e[p][k] - reference[p][k];
-            num += glm::dot(d, d);
-            den += glm::dot(reference[p][k], reference[p][k]);
-        }
-    }
-    return std::sqrt(num / den);
-}
 
 // Mean over points, normals and channels of (a - b), relative to the mean of `reference`.
 double relMeanDifference(const std::vector<std::vector<glm::dvec3>>& a,
@@ -121,12 +42,6 @@ double relMeanDifference(const std::vector<std::vector<glm::dvec3>>& a,
         }
     }
     return diff / mean;
-}
-
-Result<BakeResult> bakeCornell(const BakeConfig& config) {
-    BakeOptions options;
-    options.threads = bench::benchThreads();
-    return bake(bench::cornellScene(), config, options);
 }
 
 // (1) Default settings at the reference points.
