@@ -18,6 +18,7 @@
 #include "probekit/baker/bake.hpp"
 #include "ray_tracer.hpp"
 #include "vpl_gather.hpp"
+#include "vpl_integrator.hpp"
 #include "vpl_paths.hpp"
 
 namespace probekit::baker {
@@ -278,6 +279,9 @@ VplConfig resolveVplConfig(const Scene& scene, const std::vector<VolumeDesc>& vo
         // its bias vanishes) as the count grows.
         v.clampDistance = float(2.0 * std::sqrt(area / (std::numbers::pi * double(*v.count))));
     }
+    if (!v.nearField) {
+        v.nearField = 2.0f * *v.clampDistance;
+    }
     return v;
 }
 
@@ -332,7 +336,8 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
         result.stats.vplLightPaths = set.lightPaths;
         vpl_gatherer.emplace(std::move(set.vpls), *tracer.value(),
                              VplGatherSettings{vpl_config->clamp, *vpl_config->clampDistance,
-                                               vpl_config->shadows, vpl_config->cutError},
+                                               *vpl_config->nearField, vpl_config->shadows,
+                                               vpl_config->cutError},
                              config.seed);
         result.stats.vpls = vpl_gatherer->vpls().size();
     }
@@ -356,8 +361,8 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     for (uint32_t vi = 0; vi < descs.value().size(); ++vi) {
         const VolumeDesc& desc = descs.value()[vi];
         PathSettings settings;
-        settings.samples = vpl_config ? vpl_config->directSamples : config.path.samples;
-        settings.maxBounces = vpl_config ? 0 : config.path.maxBounces;
+        settings.samples = config.path.samples;
+        settings.maxBounces = config.path.maxBounces;
         std::optional<LpvCascades> lpv_cascades;
         if (lpv_lights) {
             settings.samples = config.lpv.direct == LpvDirect::Traced ? config.lpv.directSamples
@@ -367,6 +372,11 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
                 propagateLpv(scene, *lpv_lights, config.lpv, desc, result.stats.threads));
         }
         const PathIntegrator integrator(scene, *tracer.value(), settings, desc.shOrder);
+        std::optional<VplProbeIntegrator> vpl_integrator;
+        if (vpl_gatherer) {
+            vpl_integrator.emplace(scene, *tracer.value(), *vpl_gatherer, *vpl_config,
+                                   desc.shOrder);
+        }
 
         const size_t count = desc.grid.probeCount();
         std::vector<sh::ShRgb> probes(count);
@@ -386,15 +396,16 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
                 const size_t end = std::min(count, begin + kChunk);
                 for (size_t i = begin; i < end; ++i) {
                     const glm::vec3 p = desc.grid.probeWorld(desc.grid.probeCoords(i));
-                    ProbeSample s = integrator.bakeProbe(p, config.seed, vi, i);
+                    ProbeSample s;
+                    if (vpl_integrator) {
+                        const VplProbeSample v = vpl_integrator->bakeProbe(p, config.seed, vi, i);
+                        s = v.probe;
+                        local_cut += v.cutSize;
+                    } else {
+                        s = integrator.bakeProbe(p, config.seed, vi, i);
+                    }
                     if (lpv_cascades) {
                         s.sh = lpvProbe(*lpv_cascades, config.lpv, p, s.sh);
-                    }
-                    if (vpl_gatherer) {
-                        const VplGatherResult g = vpl_gatherer->gather(p, desc.shOrder, s.sh);
-                        s.sh += g.sh;
-                        s.rays += g.rays;
-                        local_cut += g.cutSize;
                     }
                     probes[i] = s.sh;
                     validity[i] =

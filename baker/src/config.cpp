@@ -301,7 +301,7 @@ EnvironmentConfig parseEnvironment(const Reader& r, const Json& j, const std::st
 VplConfig parseVpl(const Reader& r, const Json& j, const std::string& path) {
     r.checkKeys(j, path,
                 {"count", "bounces", "direct_samples", "sampling", "clamp", "clamp_distance",
-                 "shadows", "cut_error"});
+                 "near_field", "shadows", "cut_error"});
     VplConfig v;
     if (j.contains("count")) {
         const Json& n = j["count"];
@@ -338,6 +338,17 @@ VplConfig parseVpl(const Reader& r, const Json& j, const std::string& path) {
             r.choice(d, path + ".clamp_distance", {"auto"});
         } else {
             v.clampDistance = float(r.positive(d, path + ".clamp_distance"));
+        }
+    }
+    if (j.contains("near_field")) {
+        const Json& d = j["near_field"];
+        if (d.is_string()) {
+            r.choice(d, path + ".near_field", {"auto"});
+        } else {
+            v.nearField = float(r.number(d, path + ".near_field"));
+            if (*v.nearField < 0.0f) {
+                r.fail(path + ".near_field", "must be >= 0 (0 turns it off)");
+            }
         }
     }
     if (j.contains("shadows")) {
@@ -575,6 +586,7 @@ std::string describeConfig(const BakeConfig& c) {
                     {"cut_error", v.cutError}};
         j["vpl"]["count"] = v.count ? Json(*v.count) : Json("auto");
         j["vpl"]["clamp_distance"] = v.clampDistance ? Json(*v.clampDistance) : Json("auto");
+        j["vpl"]["near_field"] = v.nearField ? Json(*v.nearField) : Json("auto");
     }
     if (c.method == "lpv") {
         const LpvConfig& l = c.lpv;

@@ -43,6 +43,7 @@ ProbeSample PathIntegrator::bakeProbe(glm::vec3 position, uint64_t seed, uint32_
     ProbeSample result{};
     sh::ShRgb block{};
     uint64_t back_faces = 0;
+    uint64_t near_hits = 0;
     for (uint32_t i = 0; i < n; ++i) {
         const glm::vec3 dir = sphereDirection(scrambledSobol2d(i, sobol_seed));
         Rng rng(hashKeys(probe_key, i));
@@ -51,6 +52,7 @@ ProbeSample PathIntegrator::bakeProbe(glm::vec3 position, uint64_t seed, uint32_
         probeDirectLight(position, 1.0f / float(n), rng, block, stats);
         result.rays += stats.rays;
         back_faces += stats.primaryBackFace ? 1 : 0;
+        near_hits += stats.primaryNear ? 1 : 0;
         sh::addSample(block, m_order, dir, radiance, weight);
         if ((i + 1) % kSamplesPerBlock == 0 || i + 1 == n) {
             result.sh += block;
@@ -58,6 +60,7 @@ ProbeSample PathIntegrator::bakeProbe(glm::vec3 position, uint64_t seed, uint32_
         }
     }
     result.backFaceFraction = float(double(back_faces) / double(n));
+    result.nearFraction = float(double(near_hits) / double(n));
 
     // Delta lights at the probe itself, projected exactly.
     for (const PunctualLight& light : m_scene.lights) {
@@ -93,6 +96,8 @@ glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, Rng&
         return m_scene.environment.radiance(dir) * mis_weight;
     }
     stats.primaryBackFace = hit->backFace;
+    const float hit_distance = hit->t; // dir is unit: metres
+    stats.primaryNear = hit_distance < m_settings.nearDistance;
 
     glm::vec3 radiance(0.0f);
     glm::vec3 throughput(1.0f);
@@ -110,7 +115,7 @@ glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, Rng&
                 continuation_pdf, emitterPdfSolidAngle(*hit, position - previous_position));
             radiance += throughput * emitted * mis_weight;
         }
-        if (vertex == m_settings.maxBounces) {
+        if (vertex == m_settings.maxBounces || !(hit_distance < m_settings.nearDistance)) {
             break;
         }
         ++vertex;

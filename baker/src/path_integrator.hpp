@@ -50,12 +50,17 @@ struct PathSettings {
     uint32_t samples = 1024;          // directions per probe (>= 1)
     uint32_t maxBounces = 8;          // diffuse vertices per path; truncates energy (see above)
     uint32_t rouletteStartBounce = 3; // first vertex whose continuation may be terminated
+    // Metres. Paths whose first hit is this far from the probe or farther stop there (as with
+    // maxBounces = 0): the VPL method gathers the light those surfaces reflect from its VPLs
+    // and path-traces only the near field (vpl_gather.hpp). Infinite for the path method.
+    float nearDistance = kInfinity;
 };
 
 struct ProbeSample {
     sh::ShRgb sh;           // radiance SH, world frame, `order` coefficients (rest zero)
     float backFaceFraction; // primary rays that hit a back face / all primary rays
     uint64_t rays;          // every ray traced: primary, continuation and shadow
+    float nearFraction;     // primary rays that hit nearer than nearDistance / all
 };
 
 class PathIntegrator {
@@ -77,6 +82,7 @@ private:
     struct PathStats {
         uint64_t rays = 0;
         bool primaryBackFace = false;
+        bool primaryNear = false;
     };
 
     // Radiance arriving at `origin` from direction `dir` (unit), estimated with one path.

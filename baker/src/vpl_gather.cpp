@@ -200,9 +200,12 @@ VplGatherer::Contribution VplGatherer::clamped(glm::vec3 offset, float d2,
     case VplClamp::Distance:
         return Contribution{towards_probe / std::max(d2, r2), direction, 1.0f, 1.0f};
     case VplClamp::Spherical: {
-        const float clamped_d2 = std::max(d2, r2);
-        const float c = std::sqrt(std::max(0.0f, 1.0f - r2 / clamped_d2));
-        return Contribution{towards_probe / clamped_d2, direction, 2.0f / (1.0f + c), c};
+        // The delta spread evenly over the cone the sphere subtends (d >= r here, see
+        // contribution()): same energy, bands 1 and 2 scaled by the cone's Funk-Hecke factors
+        // over its solid angle.
+        const float c = std::sqrt(std::max(0.0f, 1.0f - r2 / std::max(d2, r2)));
+        return Contribution{towards_probe / std::max(d2, r2), direction, 0.5f * (1.0f + c),
+                            0.5f * c * (1.0f + c)};
     }
     }
     return Contribution{towards_probe / d2, direction, 1.0f, 1.0f};
@@ -210,16 +213,24 @@ VplGatherer::Contribution VplGatherer::clamped(glm::vec3 offset, float d2,
 
 std::optional<VplGatherer::Contribution>
 VplGatherer::contribution(const Vpl& vpl, glm::vec3 position, glm::vec3 intensity) const {
-    const glm::vec3 offset = vpl.position - position;
-    const float d2 = glm::dot(offset, offset);
-    if (!(d2 > 0.0f)) {
-        return std::nullopt;
-    }
-    const float cos_vpl = -glm::dot(vpl.normal, offset) / std::sqrt(d2);
-    if (!(cos_vpl > 0.0f)) {
+    glm::vec3 offset = vpl.position - position;
+    // The probe's height above the VPL's tangent plane.
+    const float height = -glm::dot(vpl.normal, offset);
+    if (!(height > 0.0f)) {
         return std::nullopt; // the probe is behind the lit side
     }
-    return clamped(offset, d2, intensity * cos_vpl);
+    if (glm::dot(offset, offset) < m_settings.nearField * m_settings.nearField) {
+        return std::nullopt; // the near field is path-traced
+    }
+    const float r = m_settings.clampDistance;
+    if (lifts() && height < r) {
+        // The VSL tangent-plane lift (see the header): seen as from height r.
+        offset -= (r - height) * vpl.normal;
+        const float d2 = glm::dot(offset, offset);
+        return clamped(offset, d2, intensity * (r / std::sqrt(d2)));
+    }
+    const float d2 = glm::dot(offset, offset);
+    return clamped(offset, d2, intensity * (height / std::sqrt(d2)));
 }
 
 std::optional<VplGatherer::Contribution> VplGatherer::estimate(const Node& node, glm::vec3 position,
@@ -242,25 +253,19 @@ std::optional<VplGatherer::Contribution> VplGatherer::estimate(const Node& node,
 
 float VplGatherer::magnitudeFalloff(float d2) const {
     const float r2 = m_settings.clampDistance * m_settings.clampDistance;
-    switch (m_settings.clamp) {
-    case VplClamp::None:
-        return d2 > 0.0f ? 1.0f / d2 : INFINITY;
-    case VplClamp::Distance:
-        return 1.0f / std::max(d2, r2);
-    case VplClamp::Spherical: {
-        const float clamped = std::max(d2, r2);
-        if (!(clamped > 0.0f)) {
-            return INFINITY;
-        }
-        const float c = std::sqrt(std::max(0.0f, 1.0f - r2 / clamped));
-        return 2.0f / (1.0f + c) / clamped;
-    }
-    }
-    return INFINITY;
+    const float clamped = m_settings.clamp == VplClamp::None ? d2 : std::max(d2, r2);
+    return clamped > 0.0f ? 1.0f / clamped : INFINITY;
 }
 
 VplGatherer::Bounds VplGatherer::bounds(const Node& node, glm::vec3 position) const {
     const float near_d2 = boxDistanceSquared(node.boxMin, node.boxMax, position);
+    const glm::vec3 far_offset =
+        glm::max(glm::abs(position - node.boxMin), glm::abs(position - node.boxMax));
+    const float far_d2 = glm::dot(far_offset, far_offset);
+    const float near_field2 = m_settings.nearField * m_settings.nearField;
+    if (far_d2 < near_field2) {
+        return Bounds{0.0f, false}; // wholly in the path-traced near field
+    }
     float cos_upper = 1.0f;
     bool all_facing = false;
     if (node.coneAngle < kPi) {
@@ -302,9 +307,7 @@ VplGatherer::Bounds VplGatherer::bounds(const Node& node, glm::vec3 position) co
         // |n_j - axis| <= 2 sin(cone / 2) = deviation, n_j.(p - x_j) lies within
         // axis.(p - x_j) +- deviation |p - x_j|, and axis.x over the box between the box's
         // support values.
-        const glm::vec3 far_offset =
-            glm::max(glm::abs(position - node.boxMin), glm::abs(position - node.boxMax));
-        const float far = glm::length(far_offset);
+        const float far = std::sqrt(far_d2);
         const glm::vec3 a = node.coneAxis;
         const glm::vec3 at_min = a * node.boxMin;
         const glm::vec3 at_max = a * node.boxMax;
@@ -322,7 +325,21 @@ VplGatherer::Bounds VplGatherer::bounds(const Node& node, glm::vec3 position) co
             cos_upper = std::min(cos_upper, highest / std::sqrt(near_d2));
         }
         all_facing = all_facing || lowest > 0.0f;
+        if (lifts()) {
+            // Members closer than r to their tangent plane are lifted: the centroid estimate
+            // (no lift) is only for clusters whose every member lies farther.
+            all_facing = lowest >= m_settings.clampDistance;
+        }
     }
+    if (lifts() && m_settings.clampDistance > 0.0f) {
+        // A lifted member contributes I (r / d') / d'^2 with d' >= max(d, r): its cosine
+        // factor is at most r / d_near.
+        cos_upper = std::max(
+            cos_upper,
+            near_d2 > 0.0f ? std::min(1.0f, m_settings.clampDistance / std::sqrt(near_d2)) : 1.0f);
+    }
+    // The centroid estimate counts every member: not for clusters reaching into the near field.
+    all_facing = all_facing && near_d2 >= near_field2;
     return Bounds{node.luminance * cos_upper * magnitudeFalloff(near_d2), all_facing};
 }
 
@@ -332,7 +349,7 @@ void VplGatherer::project(const Contribution& c, sh::Order order,
     const int count = sh::coefficientCount(order);
     for (int i = 0; i < count; ++i) {
         const int band = sh::bandOf(i);
-        const float factor = band == 0 ? c.band0 : (band == 1 ? 1.0f : c.band2);
+        const float factor = band == 0 ? 1.0f : (band == 1 ? c.band1 : c.band2);
         acc[i] += glm::dvec3(c.irradiance) * double(y[i] * factor);
     }
 }
@@ -431,7 +448,7 @@ VplGatherResult VplGatherer::gatherCut(glm::vec3 position, sh::Order order, doub
             c.hasContribution = contribution.has_value();
             if (contribution) {
                 c.contribution = *contribution;
-                c.estimate = luminanceOf(contribution->irradiance) * contribution->band0;
+                c.estimate = luminanceOf(contribution->irradiance);
             }
             c.live = true;
             c.visible = true;
@@ -487,7 +504,7 @@ VplGatherResult VplGatherer::gatherCut(glm::vec3 position, sh::Order order, doub
         if (node.secondChild == 0) {
             const Vpl& v = m_vpls[node.representative];
             if (const std::optional<Contribution> c = contribution(v, position, v.intensity)) {
-                first_total += luminanceOf(c->irradiance) * c->band0;
+                first_total += luminanceOf(c->irradiance);
             }
         } else if (depth < kSeedDepth) {
             seeds.emplace_back(node.secondChild, depth + 1);

@@ -1,23 +1,37 @@
 // probekit::baker::VplGatherer — gathering a VPL set (vpl_paths.hpp) at probes, into radiance SH.
 //
 // One VPL of intensity I along its normal n at point x gives a probe at p (d = |x - p|,
-// w = (x - p) / d) a directional delta of irradiance e = I max(0, -n.w) / d^2 from w, projected
-// exactly: coefficients e Y_lm(w) (formats/CONVENTIONS.md). The VPL reflects only into the
-// hemisphere it was lit from, so VPLs facing away contribute nothing and are culled.
+// w = (x - p) / d, height h = n.(p - x) above the VPL's tangent plane) a directional delta of
+// irradiance e = I (h / d) / d^2 from w, projected exactly: coefficients e Y_lm(w)
+// (formats/CONVENTIONS.md). The VPL reflects only into the hemisphere it was lit from: h <= 0
+// contributes nothing and is culled.
 //
-// Clamping (VplClamp) removes the 1 / d^2 spike of a VPL close to the probe; r = clampDistance:
-//  * None: as above, unbiased with respect to the VPL set, unbounded near surfaces.
-//  * Distance: d^2 replaced by max(d^2, r^2).
-//  * Spherical: the virtual spherical light of Hasan, Krivanek, Walter and Bala, "Virtual
-//    Spherical Lights for Many-Light Rendering of Glossy Scenes" (SIGGRAPH Asia 2009): the VPL's
-//    intensity spread over a Lambertian sphere of radius r, whose radiance I / (pi r^2) fills
-//    the cone of half-angle alpha, sin alpha = r / max(d, r), about w. The cone's exact SH
-//    (Funk-Hecke: band l scaled by 2 pi times the integral of P_l over [cos alpha, 1]) is
-//    e Y_lm(w) x (2 / (1 + c), 1, c) for bands (0, 1, 2), c = cos alpha and
-//    e = I max(0, -n.w) / max(d, r)^2. Band 1 (the irradiance a surface facing it receives)
-//    is exactly the point light's outside the sphere, band 0 gains (1 - c) / (1 + c) ~ r^2 /
-//    (4 d^2); inside the sphere (d < r) the probe sees a hemisphere of radiance I / (pi r^2).
-//    The spike is bounded by 2 I / r^2 and spread over a hemisphere instead of a direction.
+// Clamping (VplClamp) tames the 1 / d^2 spike of a VPL close to the probe; r = clampDistance:
+//  * None: as above; unbiased over VPL sets, unbounded near surfaces.
+//  * Distance: d^2 replaced by max(d^2, r^2). Bounded by I / r^2; a probe at height h < r
+//    above a uniformly lit plane receives h (2r - h) / r^2 of its light.
+//  * Spherical: virtual spherical lights (Hasan, Krivanek, Walter and Bala, "Virtual Spherical
+//    Lights for Many-Light Rendering of Glossy Scenes", SIGGRAPH Asia 2009): the VPL's light
+//    spread over a sphere of radius r, which a probe at distance d >= r sees as a cone of
+//    half-angle asin(r / d). Its energy e is averaged over the cone's solid angle: by
+//    Funk-Hecke, bands (0, 1, 2) of e Y_lm(w) scale by (1, (1 + c) / 2, c (1 + c) / 2),
+//    c = cos(half-angle). A probe nearer than r to the VPL's surface (h < r) sees it as from
+//    the sphere's rim, lifted to height r above the tangent plane: e = I (r / d') / d'^2 from
+//    the lifted point, d' >= r. This is our addition to the VSL: clamping d instead would lose
+//    h (2r - h) / r^2 of a plane's light near it, while the lift keeps a uniformly lit plane's
+//    light and its angular distribution exact at every height (a uniform plane looks the same
+//    from any height). Bounded by I / r^2; what remains is the smoothing of the lighting over
+//    about r, and the VPL set's own noise, which near a surface comes from the ~(r / spacing)^2
+//    VPLs within r.
+//
+// Near field (nearField > 0): no clamp resolves a surface only a few VPL spacings from the
+// probe (5 cm from a corner, clamping alone leaves 20-50% error at 16384 VPLs: the near field
+// holds a handful of VPLs). So VPLs nearer to the probe than nearField are skipped here and
+// the probe path-traces the directions whose first hit is that near (vpl_integrator.hpp); with
+// visibility the two partition the sphere exactly (a visible VPL at distance d is the first
+// hit in its direction), in the spirit of Kollig and Keller's bias compensation ("Illumination
+// in the Presence of Weak Singularities", 2004). The spherical clamp's lift is then off: it
+// trades light a plane's near part loses for more from its far part.
 //
 // Lightcuts (Walter et al., "Lightcuts: A Scalable Approach to Illumination", SIGGRAPH 2005):
 // the VPLs are the leaves of a binary tree (top-down median splits along the widest of the
@@ -26,35 +40,43 @@
 // a cone bounding their normals, a representative member j chosen at build time with
 // probability lum(I_j) / lum(I_C) (hashed from the seed and the node), its luminance-weighted
 // centroid and, per channel, the sum of intensity x normal. Its estimate at a probe:
-//  * if every member faces the probe and the cluster is small seen from it (bounding radius <
-//    kCentroidOpening x distance to the centroid): its exact summed intensity towards the
-//    probe, -sum_j I_j n_j.w, placed at the centroid;
+//  * if every member faces the probe (for the spherical clamp: from at least r) and the
+//    cluster is small seen from it (bounding radius < kCentroidOpening x distance to the
+//    centroid): its exact summed intensity towards the probe, -sum_j I_j n_j.w, placed at the
+//    centroid;
 //  * otherwise the representative's contribution x lum(I_C) / lum(I_j) (unbiased, per
 //    channel, over the choice of representative).
 // Visibility is the representative's.
 //
-// The error bound. The magnitude of a contribution is m = lum(e) x band-0 factor, the
-// luminance of the probe's scalar irradiance (integral of radiance over the sphere). For a
-// cluster, U_C = lum(I_C) x cosBound x F(dmin^2): cosBound bounds max(0, n_j.(p - x_j)) /
-// |p - x_j| over the cluster by the smaller of an angular bound (normal cone and the box's
-// bounding sphere, Conty Estevez and Kulla 2018) and a plane bound (exact for flat clusters),
-// and F is the clamped falloff (band-0 factor included) at the box's nearest point (F
-// decreases with distance). The true sum of the members' magnitudes and the estimate both lie
-// in [0, U_C] (whatever the visibility), so the cluster's error in the luminance of E_L2(n) is
-// at most 1.11 U_C for every normal n (per unit magnitude, the L2 irradiance of a delta or VSL,
-// f0/4 + t/2 + (5/32) f2 (3t^2 - 1) over f0 with t = n.w, lies in [-0.04, 1.0625]). The cut
-// starts at the root and repeatedly replaces the cluster of largest U_C by its children until
-// every cluster has U_C <= cutError x T, T the probe's current total magnitude (the `direct`
-// light given to gather() plus the cut's estimates, with visibility), or the cut holds
-// kMaxCutSize clusters. So each cluster's error is at most 1.11 cutError T, the whole cut's at
-// most 1.11 sum U_C (VplGatherResult::errorBound). Clusters with cosBound 0 face away from the
+// The error bound. The magnitude of a contribution is m = lum(e), the luminance of the
+// probe's scalar irradiance (integral of radiance over the sphere). For a cluster,
+// U_C = lum(I_C) x cosBound x F(dmin^2): cosBound bounds h_j / d_j over the members by the
+// smaller of an angular bound (normal cone and the box's bounding sphere, Conty Estevez and
+// Kulla 2018) and a plane bound (exact for flat clusters), raised to r / dmin for the
+// spherical clamp's lifted members; F(d^2) = 1 / d^2 (None) or 1 / max(d^2, r^2), at the box's
+// nearest point. Clusters wholly inside the near field are dropped; those reaching into it
+// keep U_C (their skipped members contribute 0 <= U_C) and no centroid estimate. The true sum of
+// the members' magnitudes and the estimate both lie in [0, U_C] (whatever the visibility), so the
+// cluster's error in the luminance of E_L2(n) is at most 1.11 U_C for every normal n (per unit
+// magnitude, the L2 irradiance of a delta or an averaged cone, 1/4 + b1 t/2 + (5/32) b2 (3t^2 - 1)
+// with t = n.w and band factors b1, b2, lies in [-0.04, 1.0625]). The cut takes every cluster with
+// U_C <= cutError x T, T the probe's total magnitude (the `direct` light given to gather() plus the
+// cut's estimates, with visibility), opening larger ones (depth first, from the root): a first T
+// from the bounds of the clusters kSeedDepth levels down, then clusters over the bound for the T
+// now known are opened again, until none is (at most kRefinementRounds times per phase) or the cut
+// holds kMaxCutSize clusters. So each cluster's error is at most 1.11 cutError T, the whole cut's
+// at most 1.11 sum U_C (VplGatherResult::errorBound). Clusters with cosBound 0 face away from the
 // probe and are dropped exactly.
 //
 // Visibility (shadows on): one ray from the probe to each cut member's representative
-// (Vpl::shadowTarget), traced in batches through RayTracer's stream query. The cut is refined
-// without visibility first, then the unoccluded total T is corrected by the traced visibility
-// and the refinement resumes against it (at most kVisibilityRounds times), so that shadowed
-// probes are held to the same relative bound as lit ones.
+// (Vpl::shadowTarget), traced in batches through RayTracer's batched query. The cut is
+// settled without visibility first (no rays for clusters about to be opened), then T is
+// corrected by the traced visibility and the opening resumes against it, so that shadowed
+// probes are held to the same relative bound as lit ones; a cluster keeping its parent's
+// representative reuses the parent's ray. Two exceptions: T never counts as less than
+// kUnoccludedFloor x the unoccluded T (so a probe inside geometry does not open every cluster
+// for no light), and when no representative is visible at all (the probe is enclosed) the cut
+// stays as it is.
 //
 // cutError = 0 gathers every VPL individually (no tree), the exact sum over the set.
 //
@@ -78,8 +100,9 @@ namespace probekit::baker {
 struct VplGatherSettings {
     VplClamp clamp = VplClamp::Spherical;
     float clampDistance = 0.0f; // metres, distance and spherical clamps
+    float nearField = 0.0f;     // metres: VPLs nearer to the probe are left to paths (0 = none)
     bool shadows = true;
-    float cutError = 0.02f; // lightcut bound per cluster / probe total; 0 = every VPL
+    float cutError = 0.005f; // lightcut bound per cluster / probe total; 0 = every VPL
 };
 
 struct VplGatherResult {
@@ -132,7 +155,7 @@ private:
     struct Contribution {
         glm::vec3 irradiance; // e, W/m^2 per channel
         glm::vec3 direction;  // unit, probe to the light
-        float band0;          // band factors (spherical clamp; 1 otherwise)
+        float band1;          // band factors (spherical clamp; 1 otherwise)
         float band2;
     };
     // Light of radiant intensity `towards_probe` (W/sr, its cosine included) from `offset`
@@ -149,6 +172,12 @@ private:
     // Band-0-weighted falloff at squared distance d2: the largest F of any point at that
     // distance (spherical: 2 / (1 + c) / max(d2, r^2)).
     float magnitudeFalloff(float d2) const;
+    // The spherical clamp's tangent-plane lift is on only without a near field: it trades the
+    // light a plane's near part loses for more from its far part, which is wrong once the
+    // near part is path-traced.
+    bool lifts() const {
+        return m_settings.clamp == VplClamp::Spherical && m_settings.nearField == 0.0f;
+    }
     // U_C (0: no member faces the probe), and whether every member faces it.
     struct Bounds {
         float upper;

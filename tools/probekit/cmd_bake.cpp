@@ -200,8 +200,8 @@ int runBake(const BakeOptionsCli& o) {
                 baker::resolveVplConfig(scene.value(), placed.value(), config);
             std::printf("baking %s: method vpl, seed %llu\n"
                         "  direct light: %u directions per probe (vpl.direct_samples)\n"
-                        "  %u VPLs%s, %u bounces, %s sampling, clamp %s (%.4f m%s), shadows %s, "
-                        "cut error %g\n",
+                        "  %u VPLs%s, %u bounces, %s sampling, clamp %s (%.4f m%s), near field "
+                        "%.4f m%s, shadows %s, cut error %g\n",
                         o.scene.c_str(), static_cast<unsigned long long>(config.seed),
                         v.directSamples, *v.count,
                         config.vpl.count ? ""
@@ -210,6 +210,7 @@ int runBake(const BakeOptionsCli& o) {
                         v.bounces, std::string(baker::toString(v.sampling)).c_str(),
                         std::string(baker::toString(v.clamp)).c_str(), *v.clampDistance,
                         config.vpl.clampDistance ? "" : ", auto: 2 sqrt(area / (pi count))",
+                        *v.nearField, config.vpl.nearField ? "" : " (auto: 2 x clamp distance)",
                         v.shadows ? "on" : "off", double(v.cutError));
         } else if (config.method == "lpv") {
             const baker::LpvConfig& l = config.lpv;

@@ -112,6 +112,11 @@ struct VplConfig {
     // radius of the surface disc each VPL stands for, 2 sqrt(area / (pi count)), so the
     // clamping bias vanishes as the count grows.
     std::optional<float> clampDistance;
+    // Metres: surfaces nearer to a probe than this are path-traced from the probe (its direct
+    // light directions continue as full paths) instead of gathered from VPLs, which cannot
+    // resolve a surface a few VPL spacings away (a probe in a corner). 0 = off. Unset = twice
+    // the clamp distance. Needs shadows on to partition the sphere exactly.
+    std::optional<float> nearField;
     bool shadows = true; // a visibility ray per probe-cluster pair (off: light leaks)
     // Lightcut: each gathered cluster's error is bounded by this fraction of the probe's
     // scalar irradiance (0 = gather every VPL individually). Stricter than Lightcuts' 2% for

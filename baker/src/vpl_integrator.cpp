@@ -1,0 +1,37 @@
+#include "vpl_integrator.hpp"
+
+namespace probekit::baker {
+
+PathSettings VplProbeIntegrator::directSettings(const VplConfig& config, uint32_t samples) {
+    PathSettings settings;
+    settings.samples = samples;
+    settings.maxBounces = config.bounces;
+    settings.nearDistance = *config.nearField;
+    return settings;
+}
+
+VplProbeIntegrator::VplProbeIntegrator(const Scene& scene, const RayTracer& tracer,
+                                       const VplGatherer& gatherer, const VplConfig& config,
+                                       sh::Order order)
+    : m_direct(scene, tracer, directSettings(config, config.directSamples), order),
+      m_boosted(scene, tracer, directSettings(config, config.directSamples * kNearFieldBoost),
+                order),
+      m_gatherer(gatherer), m_order(order) {}
+
+VplProbeSample VplProbeIntegrator::bakeProbe(glm::vec3 position, uint64_t seed,
+                                             uint32_t volume_index, uint64_t probe_index) const {
+    VplProbeSample result;
+    result.probe = m_direct.bakeProbe(position, seed, volume_index, probe_index);
+    if (result.probe.nearFraction > kNearFieldBoostFraction) {
+        const uint64_t first_rays = result.probe.rays;
+        result.probe = m_boosted.bakeProbe(position, seed, volume_index, probe_index);
+        result.probe.rays += first_rays;
+    }
+    const VplGatherResult g = m_gatherer.gather(position, m_order, result.probe.sh);
+    result.probe.sh += g.sh;
+    result.probe.rays += g.rays;
+    result.cutSize = g.cutSize;
+    return result;
+}
+
+} // namespace probekit::baker
