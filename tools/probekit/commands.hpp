@@ -24,5 +24,6 @@ void addBakeCommand(CLI::App& app, Command& selected);
 void addDiffCommand(CLI::App& app, Command& selected);
 void addSceneCommand(CLI::App& app, Command& selected);
 void addBenchRaysCommand(CLI::App& app, Command& selected);
+void addBenchCommand(CLI::App& app, Command& selected);
 
 } // namespace probekit::cli

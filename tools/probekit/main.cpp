@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
     probekit::cli::addSampleCommand(app, selected);
     probekit::cli::addRenderCommand(app, selected);
     probekit::cli::addDiffCommand(app, selected);
+    probekit::cli::addBenchCommand(app, selected);
 
     try {
         app.parse(argc, argv);
