@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "bake_test_support.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/generators.hpp"
 #include "probekit/runtime/sampler.hpp"
@@ -32,36 +33,11 @@ constexpr double kCornellRelRmse = 0.02;
 constexpr uint32_t kCornellSamples = 131072;
 constexpr double kCornellNoiseBound = 0.0125;
 
-std::filesystem::path tempDir(const std::string& name) {
-    auto dir = std::filesystem::temp_directory_path() / ("probekit_test_" + name);
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    return dir;
-}
-
-Scene loadOrFail(const std::filesystem::path& path) {
-    Result<Scene> s = loadGltf(path);
-    EXPECT_TRUE(s.ok()) << (s.ok() ? "" : s.error().message);
-    return s.ok() ? std::move(s).value() : Scene{};
-}
-
-// One 1x1x1 centre-mode volume centred at each point: the probe sits exactly at the point.
+// One probe at each point, path settings as the reference (64 bounces).
 BakeConfig pointProbes(const std::vector<glm::vec3>& points, uint32_t samples) {
-    BakeConfig c;
+    BakeConfig c = test::probesAt(points, 0.05f);
     c.path.samples = samples;
     c.path.maxBounces = 64;
-    for (size_t i = 0; i < points.size(); ++i) {
-        VolumeConfig v;
-        // Appending (not operator+) avoids a GCC 12 -Wrestrict false positive.
-        v.name = "p";
-        v.name += std::to_string(i);
-        v.bounds.mode = BoundsMode::Custom;
-        v.bounds.min = points[i] - glm::vec3(0.05f);
-        v.bounds.max = points[i] + glm::vec3(0.05f);
-        v.resolution = glm::uvec3(1);
-        v.storage = Storage::Float32;
-        c.volumes.push_back(v);
-    }
     return c;
 }
 
@@ -91,11 +67,7 @@ TEST(BakeConfig, ParsesTheDocumentedExample) {
 }
 
 TEST(BakeConfig, ErrorsNameFileAndField) {
-    struct Case {
-        const char* json;
-        const char* expect;
-    };
-    const Case cases[] = {
+    const test::ConfigErrorCase cases[] = {
         {R"({"volumes": [{"resolution": [16, 12, 16]}]})", "bake.json: volumes[0].resolution[1]"},
         {R"({"volumes": [{"bounds": {"mode": "custom", "min": [0,0,0], "max": [1,0,1]}}]})",
          "volumes[0].bounds.max[1]"},
@@ -107,12 +79,7 @@ TEST(BakeConfig, ErrorsNameFileAndField) {
         {R"({"environment": {"type": "latlong"}})", "environment.file"},
         {R"({"method": )", "bake.json: not valid JSON"},
     };
-    for (const Case& c : cases) {
-        Result<BakeConfig> r = parseBakeConfig(c.json, "bake.json");
-        ASSERT_FALSE(r.ok()) << c.json;
-        EXPECT_NE(r.error().message.find(c.expect), std::string::npos)
-            << "message: " << r.error().message << "\nexpected to contain: " << c.expect;
-    }
+    test::expectConfigErrors(cases);
 }
 
 TEST(BakeVolumes, AutoResolutionRoundsToPowersOfTwoAndCaps) {
@@ -234,7 +201,7 @@ TEST(BakeCornell, MatchesCyclesReferenceWithinTwoPercent) {
     for (const auto& p : ref["points"]) {
         points.emplace_back(p[0].get<float>(), p[1].get<float>(), p[2].get<float>());
     }
-    Scene scene = loadOrFail(dir / "cornell_from_obj.gltf");
+    Scene scene = test::loadOrFail(dir / "cornell_from_obj.gltf");
     ASSERT_TRUE(scene.hasGeometry());
 
     auto relRmse = [&](const BakeResult& a) {
@@ -289,9 +256,9 @@ TEST(BakeCornell, MatchesCyclesReferenceWithinTwoPercent) {
 }
 
 TEST(BakeDeterminism, BitIdenticalForOneAndTwoThreads) {
-    const auto dir = tempDir("determinism");
+    const auto dir = test::tempDir("determinism");
     ASSERT_TRUE(writeGeneratedScene("cornell", dir / "cornell.gltf").ok());
-    Scene scene = loadOrFail(dir / "cornell.gltf");
+    Scene scene = test::loadOrFail(dir / "cornell.gltf");
     BakeConfig c;
     c.path.samples = 64;
     VolumeConfig v;
@@ -318,9 +285,9 @@ TEST(BakeDeterminism, BitIdenticalForOneAndTwoThreads) {
 // A probe inside the Cornell box's tall block sees only back faces: it must be marked invalid
 // and filled from its valid neighbours, never left black.
 TEST(BakeValidity, ProbeInsideGeometryIsInvalidAndDilated) {
-    const auto dir = tempDir("validity");
+    const auto dir = test::tempDir("validity");
     ASSERT_TRUE(writeGeneratedScene("cornell", dir / "cornell.gltf").ok());
-    Scene scene = loadOrFail(dir / "cornell.gltf");
+    Scene scene = test::loadOrFail(dir / "cornell.gltf");
     BakeConfig c;
     c.path.samples = 256;
     VolumeConfig v;
@@ -348,9 +315,9 @@ TEST(BakeValidity, ProbeInsideGeometryIsInvalidAndDilated) {
 }
 
 TEST(BakeGenerators, CornellLoadsWithPublishedDimensions) {
-    const auto dir = tempDir("generators");
+    const auto dir = test::tempDir("generators");
     ASSERT_TRUE(writeGeneratedScene("cornell", dir / "cornell.gltf").ok());
-    Scene scene = loadOrFail(dir / "cornell.gltf");
+    Scene scene = test::loadOrFail(dir / "cornell.gltf");
     // 5 walls + 2 blocks x 5 faces + 1 light = 16 quads = 32 triangles.
     EXPECT_EQ(scene.triangles.size(), 32u);
     // Published box: 556.0 x 548.8 x 559.2 mm.

@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include "bake_test_support.hpp"
 #include "lpv.hpp"
 #include "lpv_method.hpp"
 #include "probekit/baker/bake.hpp"
@@ -19,19 +20,8 @@ using namespace probekit::baker;
 
 namespace {
 
-std::filesystem::path tempDir(const std::string& name) {
-    auto dir = std::filesystem::temp_directory_path() / ("probekit_test_" + name);
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    return dir;
-}
-
 Scene thinWallScene() {
-    const auto dir = tempDir("lpv_thin_wall");
-    EXPECT_TRUE(writeGeneratedScene("thin-wall", dir / "thin-wall.gltf").ok());
-    Result<Scene> s = loadGltf(dir / "thin-wall.gltf");
-    EXPECT_TRUE(s.ok()) << (s.ok() ? "" : s.error().message);
-    return s.ok() ? std::move(s).value() : Scene{};
+    return test::generatedScene("thin-wall");
 }
 
 // A line of probes: a custom volume of resolution `res` (one axis > 1) between lo and hi.
@@ -212,7 +202,7 @@ TEST(LpvCascades, IrradianceIsContinuousAcrossCascadeBorders) {
 // Same input, bit-identical file for 1 and 2 threads (propagation and escape rays are split
 // across threads); another seed changes the VPLs and so the result.
 TEST(LpvDeterminism, BitIdenticalForOneAndTwoThreads) {
-    const auto dir = tempDir("lpv_determinism");
+    const auto dir = test::tempDir("lpv_determinism");
     ASSERT_TRUE(writeGeneratedScene("cornell", dir / "cornell.gltf").ok());
     Result<Scene> scene = loadGltf(dir / "cornell.gltf");
     ASSERT_TRUE(scene.ok());
@@ -266,11 +256,7 @@ TEST(LpvConfig, ParsesTheSectionAndRecordsResolvedValues) {
 }
 
 TEST(LpvConfig, ErrorsNameTheField) {
-    struct Case {
-        const char* json;
-        const char* expect;
-    };
-    const Case cases[] = {
+    const test::ConfigErrorCase cases[] = {
         {R"({"lpv": {"gird": 32}})", "bake.json: lpv.gird: unknown field"},
         {R"({"lpv": {"grid": 2}})", "lpv.grid: must be in 4..256"},
         {R"({"lpv": {"cascades": 5}})", "lpv.cascades"},
@@ -282,12 +268,7 @@ TEST(LpvConfig, ErrorsNameTheField) {
         {R"({"lpv": {"intensity": -1}})", "lpv.intensity"},
         {R"({"method": "lvp"})", "method: \"lvp\" is not one of path, vpl, lpv"},
     };
-    for (const Case& c : cases) {
-        Result<BakeConfig> r = parseBakeConfig(c.json, "bake.json");
-        ASSERT_FALSE(r.ok()) << c.json;
-        EXPECT_NE(r.error().message.find(c.expect), std::string::npos)
-            << "message: " << r.error().message << "\nexpected to contain: " << c.expect;
-    }
+    test::expectConfigErrors(cases);
 }
 
 // Direct light propagated instead of traced: the point light of the thin-wall scene enters the

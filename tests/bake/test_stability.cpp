@@ -23,6 +23,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "bake_test_support.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/generators.hpp"
 #include "probekit/formats/sh.hpp"
@@ -33,15 +34,7 @@ namespace {
 
 constexpr int kNormals = 64; // the compare metric's normal count (runtime/compare.hpp)
 
-Scene generatedScene(const std::string& name) {
-    const auto dir = std::filesystem::temp_directory_path() / ("probekit_test_stability_" + name);
-    std::filesystem::create_directories(dir);
-    const auto file = dir / (name + ".gltf");
-    EXPECT_TRUE(writeGeneratedScene(name, file).ok());
-    Result<Scene> s = loadGltf(file);
-    EXPECT_TRUE(s.ok()) << (s.ok() ? "" : s.error().message);
-    return s.ok() ? std::move(s).value() : Scene{};
-}
+using test::generatedScene;
 
 // A float L2 volume of `res` probes over the box lo..hi (centre placement).
 VolumeConfig boxVolume(glm::vec3 lo, glm::vec3 hi, glm::uvec3 res) {

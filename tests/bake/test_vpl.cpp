@@ -29,6 +29,7 @@
 #include <glm/geometric.hpp>
 #include <glm/vector_relational.hpp>
 
+#include "bake_test_support.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/generators.hpp"
 #include "probekit/formats/sh.hpp"
@@ -503,21 +504,10 @@ Scene roomScene() {
     return b.finish();
 }
 
-// One 1 x 1 x 1 volume per point, so each probe sits exactly at its point.
+// One 1 x 1 x 1 volume per point, so each probe sits exactly at its point; no dilation.
 BakeConfig probesAt(const std::vector<glm::vec3>& points) {
-    BakeConfig c;
+    BakeConfig c = test::probesAt(points, 0.02f);
     c.dilate = false;
-    for (size_t i = 0; i < points.size(); ++i) {
-        VolumeConfig v;
-        v.name = "p";
-        v.name += std::to_string(i);
-        v.bounds.mode = BoundsMode::Custom;
-        v.bounds.min = points[i] - glm::vec3(0.02f);
-        v.bounds.max = points[i] + glm::vec3(0.02f);
-        v.resolution = glm::uvec3(1);
-        v.storage = Storage::Float32;
-        c.volumes.push_back(v);
-    }
     return c;
 }
 
@@ -873,11 +863,7 @@ TEST(VplConfig, ParsesTheSection) {
 }
 
 TEST(VplConfig, ErrorsNameFileAndField) {
-    struct Case {
-        const char* json;
-        const char* expect;
-    };
-    const Case cases[] = {
+    const test::ConfigErrorCase cases[] = {
         {R"({"vpl": {"cuont": 10}})", "bake.json: vpl.cuont: unknown field"},
         {R"({"vpl": {"count": 0}})", "bake.json: vpl.count: must be in 1.."},
         {R"({"vpl": {"count": "many"}})", "vpl.count: \"many\" is not one of auto"},
@@ -895,12 +881,7 @@ TEST(VplConfig, ErrorsNameFileAndField) {
         {R"({"vpl": []})", "vpl: must be a JSON object"},
         {R"({"method": "photon"})", "method: \"photon\" is not one of path, vpl"},
     };
-    for (const Case& c : cases) {
-        Result<BakeConfig> r = parseBakeConfig(c.json, "bake.json");
-        ASSERT_FALSE(r.ok()) << c.json;
-        EXPECT_NE(r.error().message.find(c.expect), std::string::npos)
-            << "message: " << r.error().message << "\nexpected to contain: " << c.expect;
-    }
+    test::expectConfigErrors(cases);
 }
 
 } // namespace

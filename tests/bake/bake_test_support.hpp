@@ -1,0 +1,74 @@
+// Helpers shared by the bake test files: temporary folders, generated scenes, probes placed at
+// points, and table-driven config-error checks.
+#pragma once
+
+#include <filesystem>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "probekit/baker/bake.hpp"
+#include "probekit/baker/generators.hpp"
+
+namespace probekit::test {
+
+// A fresh, empty folder under the system temporary directory.
+inline std::filesystem::path tempDir(const std::string& name) {
+    auto dir = std::filesystem::temp_directory_path() / ("probekit_test_" + name);
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
+// Loads a glTF, failing the current test (and returning an empty scene) when it cannot.
+inline baker::Scene loadOrFail(const std::filesystem::path& path) {
+    Result<baker::Scene> s = baker::loadGltf(path);
+    EXPECT_TRUE(s.ok()) << (s.ok() ? "" : s.error().message);
+    return s.ok() ? std::move(s).value() : baker::Scene{};
+}
+
+// Writes one of the bundled generated scenes (generators.hpp) and loads it.
+inline baker::Scene generatedScene(const std::string& name) {
+    const auto dir = tempDir("generated_" + name);
+    const auto file = dir / (name + ".gltf");
+    EXPECT_TRUE(baker::writeGeneratedScene(name, file).ok());
+    return loadOrFail(file);
+}
+
+// One 1x1x1 centre-mode float volume per point (a box of +-half_extent), so each probe sits
+// exactly at its point.
+inline baker::BakeConfig probesAt(const std::vector<glm::vec3>& points, float half_extent) {
+    baker::BakeConfig c;
+    for (size_t i = 0; i < points.size(); ++i) {
+        baker::VolumeConfig v;
+        // Appending (not operator+) avoids a GCC 12 -Wrestrict false positive.
+        v.name = "p";
+        v.name += std::to_string(i);
+        v.bounds.mode = baker::BoundsMode::Custom;
+        v.bounds.min = points[i] - glm::vec3(half_extent);
+        v.bounds.max = points[i] + glm::vec3(half_extent);
+        v.resolution = glm::uvec3(1);
+        v.storage = Storage::Float32;
+        c.volumes.push_back(v);
+    }
+    return c;
+}
+
+// Each JSON config must be rejected with a message containing `expect`.
+struct ConfigErrorCase {
+    const char* json;
+    const char* expect;
+};
+
+inline void expectConfigErrors(std::span<const ConfigErrorCase> cases) {
+    for (const ConfigErrorCase& c : cases) {
+        Result<baker::BakeConfig> r = baker::parseBakeConfig(c.json, "bake.json");
+        ASSERT_FALSE(r.ok()) << c.json;
+        EXPECT_NE(r.error().message.find(c.expect), std::string::npos)
+            << "message: " << r.error().message << "\nexpected to contain: " << c.expect;
+    }
+}
+
+} // namespace probekit::test
