@@ -232,9 +232,7 @@ Result<void> writeGeneratedScene(const std::string& name, const std::filesystem:
     if (auto w = writeFileAtomic(bin_path, bin); !w) {
         return w;
     }
-    const std::string text = gltf.dump(1);
-    return writeFileAtomic(path,
-                           std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+    return writeFileAtomic(path, std::string_view(gltf.dump(1)));
 }
 
 } // namespace probekit::baker

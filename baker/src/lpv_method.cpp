@@ -116,21 +116,6 @@ LpvSettings resolveLpvSettings(const LpvConfig& config) {
     return s;
 }
 
-grid::Aabb lpvWorldBounds(const grid::GridLayout& grid) {
-    const grid::Aabb& box = grid.bounds();
-    grid::Aabb out{glm::vec3(std::numeric_limits<float>::max()),
-                   glm::vec3(std::numeric_limits<float>::lowest())};
-    for (int corner = 0; corner < 8; ++corner) {
-        const glm::vec3 local((corner & 1) ? box.max.x : box.min.x,
-                              (corner & 2) ? box.max.y : box.min.y,
-                              (corner & 4) ? box.max.z : box.min.z);
-        const glm::vec3 world = grid.frame().toWorld(local);
-        out.min = glm::min(out.min, world);
-        out.max = glm::max(out.max, world);
-    }
-    return out;
-}
-
 LpvLights prepareLpvLights(const Scene& scene, const RayTracer& tracer, const LpvConfig& config,
                            const std::vector<VolumeDesc>& volumes, uint64_t seed,
                            uint32_t threads) {
@@ -158,7 +143,7 @@ LpvLights prepareLpvLights(const Scene& scene, const RayTracer& tracer, const Lp
     const grid::Aabb scene_bounds = scene.bounds;
     float reach = 0.0f;
     for (const VolumeDesc& v : volumes) {
-        const grid::Aabb bounds = lpvWorldBounds(v.grid);
+        const grid::Aabb bounds = v.grid.worldBounds();
         reach = std::max(
             reach, layoutLpvCascades(bounds, scene.hasGeometry() ? scene_bounds : bounds, settings)
                        .back()
@@ -176,7 +161,7 @@ LpvLights prepareLpvLights(const Scene& scene, const RayTracer& tracer, const Lp
 LpvCascades propagateLpv(const Scene& scene, const LpvLights& lights, const LpvConfig& config,
                          const VolumeDesc& volume, uint32_t threads) {
     const LpvSettings settings = resolveLpvSettings(config);
-    const grid::Aabb bounds = lpvWorldBounds(volume.grid);
+    const grid::Aabb bounds = volume.grid.worldBounds();
     return LpvCascades(
         scene, lights.injection,
         layoutLpvCascades(bounds, scene.hasGeometry() ? scene.bounds : bounds, settings), settings,

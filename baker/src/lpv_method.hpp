@@ -35,9 +35,6 @@ constexpr uint32_t kLpvValiditySamples = 64;
 // The transport settings of a config, iterations resolved (unset = grid).
 LpvSettings resolveLpvSettings(const LpvConfig& config);
 
-// World-space bounds of a volume: its box through its rigid frame.
-grid::Aabb lpvWorldBounds(const grid::GridLayout& grid);
-
 struct LpvLights {
     LpvInjection injection;
     uint64_t vpls = 0; // VPLs among the injection's surface lights

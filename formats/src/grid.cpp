@@ -108,6 +108,19 @@ glm::vec3 GridLayout::spacing() const {
     return size / (res - 1.0f);
 }
 
+Aabb GridLayout::worldBounds() const {
+    Aabb out{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+    for (int corner = 0; corner < 8; ++corner) {
+        const glm::vec3 local((corner & 1) ? m_bounds.max.x : m_bounds.min.x,
+                              (corner & 2) ? m_bounds.max.y : m_bounds.min.y,
+                              (corner & 4) ? m_bounds.max.z : m_bounds.min.z);
+        const glm::vec3 world = m_frame.toWorld(local);
+        out.min = glm::min(out.min, world);
+        out.max = glm::max(out.max, world);
+    }
+    return out;
+}
+
 glm::vec3 GridLayout::probeLocal(glm::uvec3 probe) const {
     return gridToLocal(glm::vec3(probe));
 }

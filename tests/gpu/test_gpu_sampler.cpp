@@ -64,15 +64,9 @@ glm::vec3 randomUnit(std::mt19937& rng) {
 grid::Aabb worldBounds(const std::vector<Volume>& volumes) {
     grid::Aabb out{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
     for (const Volume& v : volumes) {
-        const grid::Aabb& b = v.desc.grid.bounds();
-        for (int corner = 0; corner < 8; ++corner) {
-            const glm::vec3 local((corner & 1) ? b.max.x : b.min.x,
-                                  (corner & 2) ? b.max.y : b.min.y,
-                                  (corner & 4) ? b.max.z : b.min.z);
-            const glm::vec3 world = v.desc.grid.frame().toWorld(local);
-            out.min = glm::min(out.min, world);
-            out.max = glm::max(out.max, world);
-        }
+        const grid::Aabb b = v.desc.grid.worldBounds();
+        out.min = glm::min(out.min, b.min);
+        out.max = glm::max(out.max, b.max);
     }
     return out;
 }

@@ -111,6 +111,18 @@ TEST(GridLayout, WorldGridRoundTripWithRotatedFrame) {
     }
 }
 
+TEST(GridLayout, WorldBoundsEncloseTheRotatedBox) {
+    RigidFrame frame;
+    frame.rotation = glm::angleAxis(glm::radians(90.0f), glm::vec3(0, 1, 0));
+    frame.translation = glm::vec3(10, 0, 0);
+    GridLayout g({glm::vec3(-1, 0, -0.5f), glm::vec3(1, 1, 0.5f)}, glm::uvec3(2),
+                 PositionMode::Center, frame);
+    // +90 degrees about +Y maps local x to world -z and local z to world x.
+    const Aabb b = g.worldBounds();
+    expectNear(b.min, glm::vec3(9.5f, 0.0f, -1.0f), kRotationTolerance);
+    expectNear(b.max, glm::vec3(10.5f, 1.0f, 1.0f), kRotationTolerance);
+}
+
 TEST(GridLayout, MakeRejectsBadFrame) {
     RigidFrame frame;
     frame.rotation = glm::quat(2.0f, 0.0f, 0.0f, 0.0f);

@@ -299,9 +299,7 @@ int runBake(const BakeOptionsCli& o) {
     }
     if (!o.report.empty()) {
         const std::string text = report.dump(2) + "\n";
-        if (auto w = writeFileAtomic(
-                o.report, std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
-            !w) {
+        if (auto w = writeFileAtomic(o.report, text); !w) {
             std::fprintf(stderr, "probekit bake: --report: %s\n", w.error().message.c_str());
             return kExitFailure;
         }

@@ -431,9 +431,7 @@ int runBench(const BenchOptions& o) {
             }
         }
         // Rewritten after every run, atomically: an interrupted sweep leaves a complete CSV.
-        if (auto w = writeFileAtomic(
-                out_path, std::span(reinterpret_cast<const uint8_t*>(csv.data()), csv.size()));
-            !w) {
+        if (auto w = writeFileAtomic(out_path, csv); !w) {
             return fail(w.error().message);
         }
     }

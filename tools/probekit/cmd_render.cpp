@@ -96,15 +96,9 @@ grid::Aabb framedBox(const baker::Scene& scene, const std::vector<Volume>& volum
     }
     grid::Aabb box{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
     for (const Volume& v : volumes) {
-        const grid::Aabb& b = v.desc.grid.bounds();
-        for (int corner = 0; corner < 8; ++corner) {
-            const glm::vec3 local((corner & 1) ? b.max.x : b.min.x,
-                                  (corner & 2) ? b.max.y : b.min.y,
-                                  (corner & 4) ? b.max.z : b.min.z);
-            const glm::vec3 world = v.desc.grid.frame().toWorld(local);
-            box.min = glm::min(box.min, world);
-            box.max = glm::max(box.max, world);
-        }
+        const grid::Aabb b = v.desc.grid.worldBounds();
+        box.min = glm::min(box.min, b.min);
+        box.max = glm::max(box.max, b.max);
     }
     return box;
 }

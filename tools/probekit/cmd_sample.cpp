@@ -194,8 +194,7 @@ int runSample(const SampleOptions& o) {
         }
         return kExitOk;
     }
-    const auto* bytes = reinterpret_cast<const uint8_t*>(csv.data());
-    if (auto w = writeFileAtomic(o.output, std::span<const uint8_t>(bytes, csv.size())); !w) {
+    if (auto w = writeFileAtomic(o.output, csv); !w) {
         std::fprintf(stderr, "probekit sample: %s\n", w.error().message.c_str());
         return kExitFailure;
     }

@@ -91,6 +91,9 @@ public:
     // one centre-mode probe).
     glm::vec3 spacing() const;
 
+    // World-space axis-aligned box around the (possibly rotated) volume box.
+    Aabb worldBounds() const;
+
     glm::vec3 probeLocal(glm::uvec3 probe) const;
     glm::vec3 probeWorld(glm::uvec3 probe) const { return m_frame.toWorld(probeLocal(probe)); }
 

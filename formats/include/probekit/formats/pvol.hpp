@@ -23,6 +23,7 @@
 #include <filesystem>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "probekit/formats/result.hpp"
@@ -72,6 +73,11 @@ Result<void> writePvol(const std::filesystem::path& path, const PvolFile& file);
 
 // Writes arbitrary bytes atomically with the same guarantees (used by writePvol and tools).
 Result<void> writeFileAtomic(const std::filesystem::path& path, std::span<const uint8_t> bytes);
+// The same for text (CSV, JSON, glTF).
+inline Result<void> writeFileAtomic(const std::filesystem::path& path, std::string_view text) {
+    return writeFileAtomic(path,
+                           std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
+}
 
 // xxHash64 (Yann Collet's algorithm, specification at xxhash.com) of a byte range.
 uint64_t xxhash64(std::span<const uint8_t> bytes, uint64_t seed = 0);
