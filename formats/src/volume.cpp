@@ -18,6 +18,16 @@ std::string_view toString(Storage storage) {
     return "unknown";
 }
 
+std::string_view toString(VolumeLayout layout) {
+    switch (layout) {
+    case VolumeLayout::Dense:
+        return "dense";
+    case VolumeLayout::Bricked:
+        return "bricked";
+    }
+    return "unknown";
+}
+
 namespace {
 
 // Band-2 value j = 3 * k + c sits at plane 3 + j / 4, component j % 4 (see volume.hpp).
@@ -91,7 +101,16 @@ sh::ShRgb Volume::probe(size_t probe_index) const {
 
 Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
                           std::span<const uint8_t> validity) {
-    const size_t probe_count = desc.grid.probeCount();
+    std::vector<uint32_t> indirection;
+    if (desc.layout == VolumeLayout::Bricked) {
+        auto built =
+            brick::buildIndirection(desc.grid.resolution(), desc.bricks, volumeLabel(desc));
+        if (!built) {
+            return built.error();
+        }
+        indirection = std::move(built).value();
+    }
+    const size_t probe_count = desc.probeCount();
     if (probes.size() != probe_count) {
         return makeError(ErrorCode::InconsistentSize,
                          volumeLabel(desc) + ": " + std::to_string(probes.size()) +
@@ -150,6 +169,7 @@ Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
     } else {
         volume.validity.assign(validity.begin(), validity.end());
     }
+    volume.indirection = std::move(indirection);
     volume.desc = std::move(desc);
     return volume;
 }
@@ -166,6 +186,31 @@ Result<void> validateVolume(const Volume& volume) {
         return makeError(ErrorCode::BadEnum, label + ": storage " +
                                                  std::to_string(int(desc.storage)) +
                                                  " is not 0 (float) or 1 (half)");
+    }
+    if (desc.layout != VolumeLayout::Dense && desc.layout != VolumeLayout::Bricked) {
+        return makeError(ErrorCode::BadEnum, label + ": layout " +
+                                                 std::to_string(int(desc.layout)) +
+                                                 " is not 0 (dense) or 1 (bricked)");
+    }
+    if (desc.layout == VolumeLayout::Dense && !desc.bricks.bricks.empty()) {
+        return makeError(ErrorCode::InconsistentSize, label + ": a dense volume lists bricks");
+    }
+    if (desc.layout == VolumeLayout::Bricked) {
+        if (desc.grid.mode() != grid::PositionMode::Center) {
+            return makeError(ErrorCode::BadEnum,
+                             label + ": a bricked volume's position mode must be center (0)");
+        }
+        auto built = brick::buildIndirection(desc.grid.resolution(), desc.bricks, label);
+        if (!built) {
+            return built.error();
+        }
+        if (built.value() != volume.indirection) {
+            return makeError(ErrorCode::InconsistentSize,
+                             label + ": indirection does not match the brick layout");
+        }
+    } else if (!volume.indirection.empty()) {
+        return makeError(ErrorCode::InconsistentSize,
+                         label + ": a dense volume has an indirection");
     }
     if (auto r = grid::validateResolution(desc.grid.resolution(), desc.grid.mode()); !r) {
         return makeError(r.error().code, label + ": " + r.error().message);

@@ -34,11 +34,6 @@ namespace probekit {
 constexpr uint32_t kPvolVersion = 1;
 constexpr size_t kPvolHeaderBytes = 32;
 
-enum class VolumeLayout : uint8_t {
-    Dense = 0,   // a full grid of probes
-    Bricked = 1, // reserved: coarse grid plus refined bricks (not readable yet)
-};
-
 // How a file was made. Free-form parameters are a JSON object as text, so every method can
 // record its own settings without a format change.
 struct BakeMetadata {

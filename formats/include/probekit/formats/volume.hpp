@@ -26,6 +26,7 @@
 
 #include <glm/vec4.hpp>
 
+#include "probekit/formats/brick.hpp"
 #include "probekit/formats/grid.hpp"
 #include "probekit/formats/result.hpp"
 #include "probekit/formats/sh.hpp"
@@ -54,14 +55,31 @@ constexpr float kHalfMax = 65504.0f;
 constexpr uint8_t kProbeValid = 1;
 constexpr uint8_t kProbeInvalid = 0;
 
+enum class VolumeLayout : uint8_t {
+    Dense = 0,   // a full grid of probes (grid.resolution() probes)
+    Bricked = 1, // a coarse level of bricks plus finer bricks (brick.hpp)
+};
+
+std::string_view toString(VolumeLayout layout); // "dense", "bricked"
+
 // Everything about a volume except its probe data.
 struct VolumeDesc {
     std::string name;
+    // Dense: the probe grid. Bricked: bounds and frame of the box, resolution = level-0 bricks
+    // per axis (powers of two); the position mode is Center and carries no meaning.
     grid::GridLayout grid;
+    VolumeLayout layout = VolumeLayout::Dense;
+    brick::BrickLayout bricks; // bricked only (empty for dense)
     sh::Order shOrder = sh::Order::L2;
     Storage storage = Storage::Float32;
     int32_t blendPriority = 0; // higher wins where volumes overlap
     float fadeDistance = 0.0f; // metres inside the border over which the volume fades out
+
+    // Probes stored: the grid's for dense, 64 per brick for bricked.
+    size_t probeCount() const {
+        return layout == VolumeLayout::Dense ? grid.probeCount()
+                                             : bricks.bricks.size() * brick::kBrickProbeCount;
+    }
 };
 
 struct Volume {
@@ -69,8 +87,11 @@ struct Volume {
     std::vector<uint8_t> validity;   // one byte per probe
     std::vector<float> texelsF32;    // planeCount * probeCount * 4, when storage == Float32
     std::vector<uint16_t> texelsF16; // planeCount * probeCount * 4, when storage == Float16
+    // Bricked only: brick index per finest cell (brick::buildIndirection), derived from
+    // desc.bricks by makeVolume and by the .pvol reader; empty for dense volumes.
+    std::vector<uint32_t> indirection;
 
-    size_t probeCount() const { return desc.grid.probeCount(); }
+    size_t probeCount() const { return desc.probeCount(); }
     uint32_t planes() const { return planeCount(desc.shOrder); }
     // Bytes of texel data (what the GPU textures hold).
     size_t texelBytes() const {
@@ -88,16 +109,19 @@ struct Volume {
 void packProbe(const sh::ShRgb& sh, sh::Order order, glm::vec4* out);
 sh::ShRgb unpackProbe(const glm::vec4* texels, sh::Order order);
 
-// Builds a volume from per-probe coefficients (grid order) and validity (empty = all valid).
-// Fails, naming the volume and the offending probe or value, when:
-//  * probes.size() or validity.size() differs from the grid's probe count;
+// Builds a volume from per-probe coefficients (grid order, or brick order for bricked volumes)
+// and validity (empty = all valid). Fails, naming the volume and the offending probe or value,
+// when:
+//  * a bricked layout does not tile the box (brick::buildIndirection);
+//  * probes.size() or validity.size() differs from desc.probeCount();
 //  * a coefficient is NaN or infinite;
 //  * storage is Float16 and a coefficient's magnitude exceeds kHalfMax (the message gives the
 //    largest magnitude and suggests float storage) -- never a silent infinity.
 Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
                           std::span<const uint8_t> validity = {});
 
-// Checks a volume's internal consistency (sizes, enums, bounds, resolution, validity bytes).
+// Checks a volume's internal consistency (sizes, enums, bounds, resolution, validity bytes;
+// for bricked volumes the tiling and that `indirection` matches it).
 Result<void> validateVolume(const Volume& volume);
 
 } // namespace probekit

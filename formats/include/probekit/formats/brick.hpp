@@ -1,0 +1,86 @@
+// probekit::brick — the bricked (adaptive) volume layout: a coarse level of bricks plus finer
+// bricks where the scene needs them.
+//
+// The volume box (VolumeDesc::grid bounds and frame) is cut into
+//   topBricks = VolumeDesc::grid.resolution()      (powers of two, 1..256 per axis)
+// level-0 regions. A region at level l splits into 2 x 2 x 2 regions at level l + 1, down to
+// level maxLevel (<= kMaxLevel = 3). The *leaves* of this octree tile the box exactly; each
+// leaf holds one brick of 4 x 4 x 4 probes at the corners of a 3 x 3 x 3 cell lattice over its
+// region, so probes sit on the region's faces and neighbouring bricks hold copies of the same
+// border probes. Each level is 2x denser than the one above it (probe spacing
+// region size / 3, halved per level), and a level's probe lattice contains every coarser
+// level's lattice.
+//
+// Continuity (no seams): same-level neighbours share their border probes, so trilinear
+// interpolation agrees on the shared face. Where a brick borders a coarser one, the baker
+// "stitches" the finer brick's border probes to the coarser brick's interpolation at those
+// points; trilinear interpolation of samples of a piecewise-trilinear function on a nested
+// lattice reproduces it, so the field is continuous across level borders too.
+//
+// Finest cells: the box split into N = topBricks * 2^maxLevel cells per axis (a leaf at level
+// l covers 2^(maxLevel - l) finest cells per axis). The indirection maps every finest cell
+// (x fastest) to the index of the leaf covering it; this is what the runtime uploads as its
+// indirection texture, and buildIndirection is also the tiling check.
+//
+// Probe data of a bricked Volume: probeCount() = bricks.size() * 64; probe k belongs to brick
+// k / 64, at brick-local (x, y, z) with k % 64 = x + 4 * (y + 4 * z). Texel planes and validity
+// are stored exactly as for a dense volume over those probes (volume.hpp).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "probekit/formats/result.hpp"
+
+namespace probekit::brick {
+
+constexpr uint32_t kBrickSize = 4;        // probes per brick edge
+constexpr uint32_t kBrickCells = 3;       // cells per brick edge (kBrickSize - 1)
+constexpr uint32_t kBrickProbeCount = 64; // kBrickSize^3
+constexpr uint32_t kMaxLevel = 3;         // finest level (levels 0..3: 1x, 2x, 4x, 8x density)
+// Indirection entries a file may ask for (64 MiB of u32): bounds the allocation of a forged file.
+constexpr uint64_t kMaxFinestCells = uint64_t(1) << 24;
+
+struct Brick {
+    glm::uvec3 coord{0u}; // region index at its level: coord < topBricks * 2^level per axis
+    uint8_t level = 0;    // 0..maxLevel
+    friend bool operator==(const Brick&, const Brick&) = default;
+};
+
+struct BrickLayout {
+    uint32_t maxLevel = 0;     // deepest level the layout may use (sets the indirection size)
+    std::vector<Brick> bricks; // the leaves, in any order; each one's probes are 64 in a row
+    friend bool operator==(const BrickLayout&, const BrickLayout&) = default;
+};
+
+// Finest cells per axis: topBricks * 2^maxLevel.
+inline glm::uvec3 finestCells(glm::uvec3 top_bricks, uint32_t max_level) {
+    return top_bricks * (1u << max_level);
+}
+
+// Probe-lattice coordinate of a brick's probe (x, y, z in 0..3) on the finest level's lattice:
+// brick origin (coord * 3 * 2^(maxLevel - level)) + local * 2^(maxLevel - level). Lattice points
+// are what bricks share: equal coordinates mean the same position. The lattice has
+// 3 * finestCells + 1 points per axis.
+inline glm::uvec3 latticeCoord(const Brick& b, glm::uvec3 local, uint32_t max_level) {
+    const uint32_t step = 1u << (max_level - b.level);
+    return (b.coord * kBrickCells + local) * step;
+}
+
+// Checks the layout against the volume's level-0 brick grid and builds the indirection:
+// one entry per finest cell (x fastest) holding the covering brick's index. Fails, naming
+// `label` and the brick, when maxLevel > kMaxLevel, the finest cell count exceeds
+// kMaxFinestCells, a brick's level exceeds maxLevel, its coord lies outside its level's grid,
+// two bricks overlap, or a finest cell is left uncovered.
+Result<std::vector<uint32_t>> buildIndirection(glm::uvec3 top_bricks, const BrickLayout& layout,
+                                               const std::string& label);
+
+// Every brick covering the whole box at `level` (maxLevel = level), x fastest: a uniform layout.
+BrickLayout uniformLayout(glm::uvec3 top_bricks, uint32_t level);
+
+} // namespace probekit::brick

@@ -1,0 +1,96 @@
+#include "probekit/formats/brick.hpp"
+
+#include <limits>
+
+namespace probekit::brick {
+
+namespace {
+
+std::string brickText(size_t index, const Brick& b) {
+    return "brick " + std::to_string(index) + " (level " + std::to_string(b.level) + ", coord " +
+           std::to_string(b.coord.x) + "," + std::to_string(b.coord.y) + "," +
+           std::to_string(b.coord.z) + ")";
+}
+
+} // namespace
+
+Result<std::vector<uint32_t>> buildIndirection(glm::uvec3 top_bricks, const BrickLayout& layout,
+                                               const std::string& label) {
+    if (layout.maxLevel > kMaxLevel) {
+        return makeError(ErrorCode::OutOfRange, label + ": max_level " +
+                                                    std::to_string(layout.maxLevel) + " exceeds " +
+                                                    std::to_string(kMaxLevel));
+    }
+    const glm::uvec3 cells = finestCells(top_bricks, layout.maxLevel);
+    const uint64_t cell_count = uint64_t(cells.x) * cells.y * cells.z;
+    if (cell_count > kMaxFinestCells) {
+        return makeError(ErrorCode::OutOfRange, label + ": " + std::to_string(cell_count) +
+                                                    " finest cells exceed the limit of " +
+                                                    std::to_string(kMaxFinestCells) +
+                                                    " (fewer levels or top bricks)");
+    }
+    if (layout.bricks.size() >= std::numeric_limits<uint32_t>::max()) {
+        return makeError(ErrorCode::OutOfRange, label + ": too many bricks");
+    }
+    constexpr uint32_t kUncovered = std::numeric_limits<uint32_t>::max();
+    std::vector<uint32_t> indirection(size_t(cell_count), kUncovered);
+    for (size_t i = 0; i < layout.bricks.size(); ++i) {
+        const Brick& b = layout.bricks[i];
+        if (b.level > layout.maxLevel) {
+            return makeError(ErrorCode::OutOfRange, label + ": " + brickText(i, b) +
+                                                        ": level exceeds max_level " +
+                                                        std::to_string(layout.maxLevel));
+        }
+        const glm::uvec3 level_grid = top_bricks * (1u << b.level);
+        if (b.coord.x >= level_grid.x || b.coord.y >= level_grid.y || b.coord.z >= level_grid.z) {
+            return makeError(ErrorCode::OutOfRange,
+                             label + ": " + brickText(i, b) + ": coord outside the level's " +
+                                 std::to_string(level_grid.x) + "x" + std::to_string(level_grid.y) +
+                                 "x" + std::to_string(level_grid.z) + " grid");
+        }
+        const uint32_t span = 1u << (layout.maxLevel - b.level);
+        const glm::uvec3 first = b.coord * span;
+        for (uint32_t z = first.z; z < first.z + span; ++z) {
+            for (uint32_t y = first.y; y < first.y + span; ++y) {
+                for (uint32_t x = first.x; x < first.x + span; ++x) {
+                    uint32_t& entry = indirection[x + size_t(cells.x) * (y + size_t(cells.y) * z)];
+                    if (entry != kUncovered) {
+                        return makeError(ErrorCode::InconsistentSize,
+                                         label + ": " + brickText(i, b) + " overlaps brick " +
+                                             std::to_string(entry));
+                    }
+                    entry = uint32_t(i);
+                }
+            }
+        }
+    }
+    for (size_t c = 0; c < indirection.size(); ++c) {
+        if (indirection[c] == kUncovered) {
+            const size_t x = c % cells.x;
+            const size_t y = (c / cells.x) % cells.y;
+            const size_t z = c / (size_t(cells.x) * cells.y);
+            return makeError(ErrorCode::InconsistentSize,
+                             label + ": finest cell " + std::to_string(x) + "," +
+                                 std::to_string(y) + "," + std::to_string(z) +
+                                 " is covered by no brick (the bricks must tile the box)");
+        }
+    }
+    return indirection;
+}
+
+BrickLayout uniformLayout(glm::uvec3 top_bricks, uint32_t level) {
+    BrickLayout layout;
+    layout.maxLevel = level;
+    const glm::uvec3 n = top_bricks * (1u << level);
+    layout.bricks.reserve(size_t(n.x) * n.y * n.z);
+    for (uint32_t z = 0; z < n.z; ++z) {
+        for (uint32_t y = 0; y < n.y; ++y) {
+            for (uint32_t x = 0; x < n.x; ++x) {
+                layout.bricks.push_back(Brick{glm::uvec3(x, y, z), uint8_t(level)});
+            }
+        }
+    }
+    return layout;
+}
+
+} // namespace probekit::brick
