@@ -1,5 +1,7 @@
 #include "probekit/formats/brick.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <limits>
 
 namespace probekit::brick {
@@ -76,6 +78,49 @@ Result<std::vector<uint32_t>> buildIndirection(glm::uvec3 top_bricks, const Bric
         }
     }
     return indirection;
+}
+
+BrickSample locate(glm::uvec3 top_bricks, const BrickLayout& layout,
+                   std::span<const uint32_t> indirection, glm::vec3 cell_coord) {
+    const glm::uvec3 cells = finestCells(top_bricks, layout.maxLevel);
+    glm::vec3 f;
+    glm::uvec3 c;
+    for (int a = 0; a < 3; ++a) {
+        f[a] = std::isnan(cell_coord[a]) ? 0.0f : std::clamp(cell_coord[a], 0.0f, float(cells[a]));
+        c[a] = std::min(uint32_t(f[a]), cells[a] - 1);
+    }
+    BrickSample sample;
+    sample.brick = indirection[c.x + size_t(cells.x) * (c.y + size_t(cells.y) * c.z)];
+    const uint32_t span = 1u << (layout.maxLevel - layout.bricks[sample.brick].level);
+    const glm::uvec3 origin = (c / span) * span;
+    sample.local = glm::clamp((f - glm::vec3(origin)) * (float(kBrickCells) / float(span)), 0.0f,
+                              float(kBrickCells));
+    return sample;
+}
+
+sh::ShRgb interpolate(std::span<const sh::ShRgb> brick_probes, glm::vec3 local) {
+    uint32_t first[3];
+    float t[3];
+    for (int a = 0; a < 3; ++a) {
+        const float g = std::clamp(local[a], 0.0f, float(kBrickCells));
+        first[a] = std::min(uint32_t(g), kBrickCells - 1);
+        t[a] = g - float(first[a]);
+    }
+    sh::ShRgb out;
+    for (uint32_t k = 0; k < 8; ++k) {
+        const uint32_t dx = k & 1, dy = (k >> 1) & 1, dz = k >> 2;
+        const float w =
+            (dx ? t[0] : 1.0f - t[0]) * (dy ? t[1] : 1.0f - t[1]) * (dz ? t[2] : 1.0f - t[2]);
+        if (w == 0.0f) {
+            continue;
+        }
+        const uint32_t index =
+            (first[0] + dx) + kBrickSize * ((first[1] + dy) + kBrickSize * (first[2] + dz));
+        sh::ShRgb term = brick_probes[index];
+        term *= w;
+        out += term;
+    }
+    return out;
 }
 
 BrickLayout uniformLayout(glm::uvec3 top_bricks, uint32_t level) {

@@ -36,6 +36,7 @@
 #include <glm/vec3.hpp>
 
 #include "probekit/formats/result.hpp"
+#include "probekit/formats/sh.hpp"
 
 namespace probekit::brick {
 
@@ -79,6 +80,35 @@ inline glm::uvec3 latticeCoord(const Brick& b, glm::uvec3 local, uint32_t max_le
 // two bricks overlap, or a finest cell is left uncovered.
 Result<std::vector<uint32_t>> buildIndirection(glm::uvec3 top_bricks, const BrickLayout& layout,
                                                const std::string& label);
+
+// Where one point samples a bricked volume (mirrored by shaders/probe_volume.glsl):
+//   f = clamp(cell_coord, 0, N) per axis (N = finestCells; NaN -> 0), the point in finest-cell
+//       units (box min at 0, box max at N);
+//   c = min(floor(f), N - 1)  the finest cell, b = indirection[c] the brick covering it;
+//   s = 2^(maxLevel - level of b), origin = (c / s) * s (integer division): the brick's first
+//       finest cell;
+//   local = clamp((f - origin) * 3 / s, 0, 3): brick-local probe coordinates (probe i at i).
+// On a border between bricks the cell rule picks one of them; stitched data (stitchBorders)
+// makes both give the same value there.
+struct BrickSample {
+    uint32_t brick = 0;    // index into layout.bricks
+    glm::vec3 local{0.0f}; // in [0, 3]
+};
+BrickSample locate(glm::uvec3 top_bricks, const BrickLayout& layout,
+                   std::span<const uint32_t> indirection, glm::vec3 cell_coord);
+
+// Trilinear interpolation of one brick's 64 probes (x fastest) at brick-local coordinates in
+// [0, 3] (an axis at exactly 3 uses the last probe alone).
+sh::ShRgb interpolate(std::span<const sh::ShRgb> brick_probes, glm::vec3 local);
+
+// Makes the bricked field continuous (see the top of this file). Visits bricks by ascending
+// level, then index; for every probe on its brick's boundary, finds the bricks that touch that
+// point and takes the one of lowest level (ties: lowest index); when that is another brick,
+// the probe is replaced by the other brick's interpolation at the point. Coarser bricks and
+// earlier same-level bricks are final before any brick reads them, so the result does not
+// depend on anything but the layout. `probes` holds 64 per brick (brick order, as stored).
+void stitchBorders(glm::uvec3 top_bricks, const BrickLayout& layout,
+                   std::span<const uint32_t> indirection, std::span<sh::ShRgb> probes);
 
 // Every brick covering the whole box at `level` (maxLevel = level), x fastest: a uniform layout.
 BrickLayout uniformLayout(glm::uvec3 top_bricks, uint32_t level);

@@ -97,6 +97,8 @@ struct Volume {
     size_t texelBytes() const {
         return size_t(planes()) * probeCount() * 4 * bytesPerComponent(desc.storage);
     }
+    // Bytes the runtime holds on the GPU: texels plus, for bricked volumes, the u32 indirection.
+    size_t gpuBytes() const { return texelBytes() + indirection.size() * sizeof(uint32_t); }
     size_t validCount() const;
 
     // Texel of one plane at one probe, converted to float.
