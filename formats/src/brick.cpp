@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include <glm/common.hpp>
+
 namespace probekit::brick {
 
 namespace {
