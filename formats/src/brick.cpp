@@ -1,8 +1,10 @@
 #include "probekit/formats/brick.hpp"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <limits>
+#include <numeric>
 
 #include <glm/common.hpp>
 
@@ -123,6 +125,66 @@ sh::ShRgb interpolate(std::span<const sh::ShRgb> brick_probes, glm::vec3 local) 
         out += term;
     }
     return out;
+}
+
+void stitchBorders(glm::uvec3 top_bricks, const BrickLayout& layout,
+                   std::span<const uint32_t> indirection, std::span<sh::ShRgb> probes) {
+    const glm::uvec3 cells = finestCells(top_bricks, layout.maxLevel);
+    assert(indirection.size() == size_t(cells.x) * cells.y * cells.z);
+    assert(probes.size() == layout.bricks.size() * kBrickProbeCount);
+    // Ascending level, then index: every brick a probe may be replaced from is final by then.
+    std::vector<uint32_t> order(layout.bricks.size());
+    std::iota(order.begin(), order.end(), 0u);
+    std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+        return layout.bricks[a].level < layout.bricks[b].level;
+    });
+    const auto precedes = [&](uint32_t a, uint32_t b) {
+        const uint8_t level_a = layout.bricks[a].level, level_b = layout.bricks[b].level;
+        return level_a < level_b || (level_a == level_b && a < b);
+    };
+    for (const uint32_t self : order) {
+        const Brick& own = layout.bricks[self];
+        for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
+            const glm::uvec3 local(k % kBrickSize, (k / kBrickSize) % kBrickSize,
+                                   k / (kBrickSize * kBrickSize));
+            const auto on_face = [](uint32_t i) { return i == 0 || i == kBrickCells; };
+            if (!on_face(local.x) && !on_face(local.y) && !on_face(local.z)) {
+                continue;
+            }
+            // The point in thirds of a finest cell (exact integers): on a cell border along an
+            // axis when divisible by 3, and then the cells on both sides touch it.
+            const glm::uvec3 lattice = latticeCoord(own, local, layout.maxLevel);
+            glm::uvec3 first, last;
+            for (int a = 0; a < 3; ++a) {
+                const uint32_t cell = lattice[a] / kBrickCells;
+                const bool on_border = lattice[a] % kBrickCells == 0;
+                first[a] = on_border && cell > 0 ? cell - 1 : cell;
+                last[a] = std::min(cell, cells[a] - 1);
+            }
+            uint32_t source = self;
+            for (uint32_t z = first.z; z <= last.z; ++z) {
+                for (uint32_t y = first.y; y <= last.y; ++y) {
+                    for (uint32_t x = first.x; x <= last.x; ++x) {
+                        const uint32_t other =
+                            indirection[x + size_t(cells.x) * (y + size_t(cells.y) * z)];
+                        if (precedes(other, source)) {
+                            source = other;
+                        }
+                    }
+                }
+            }
+            if (source == self) {
+                continue;
+            }
+            const Brick& from = layout.bricks[source];
+            // Powers of two: the division is exact in float.
+            const uint32_t step = 1u << (layout.maxLevel - from.level);
+            const glm::vec3 from_local =
+                (glm::vec3(lattice) - glm::vec3(from.coord * (kBrickCells * step))) / float(step);
+            probes[size_t(self) * kBrickProbeCount + k] = interpolate(
+                probes.subspan(size_t(source) * kBrickProbeCount, kBrickProbeCount), from_local);
+        }
+    }
 }
 
 BrickLayout uniformLayout(glm::uvec3 top_bricks, uint32_t level) {
