@@ -16,6 +16,10 @@
 #ifndef PROBEKIT_PROBE_VOLUME_GLSL
 #define PROBEKIT_PROBE_VOLUME_GLSL
 
+// texelFetch on the indirection's utexture3D without a sampler (an integer image has nothing
+// to filter). Before the layout include: an #extension must precede every declaration.
+#extension GL_EXT_samplerless_texture_functions : require
+
 #include "probe_volume_layout.h"
 
 const float PK_PI = 3.14159265358979323846;
@@ -71,6 +75,9 @@ layout(set = PK_VOLUME_SET, binding = PK_BINDING_STATE_A) uniform texture3D
 layout(set = PK_VOLUME_SET, binding = PK_BINDING_STATE_B) uniform texture3D
     pk_state_b[PK_MAX_VOLUMES * PK_MAX_PLANES];
 layout(set = PK_VOLUME_SET, binding = PK_BINDING_SAMPLER) uniform sampler pk_linear_clamp;
+// Bricked volumes' indirection (probe_volume_layout.h), element = slot.
+layout(set = PK_VOLUME_SET, binding = PK_BINDING_INDIRECTION) uniform utexture3D
+    pk_indirection[PK_MAX_VOLUMES];
 
 // Slot of the i-th volume in blending order (descending priority, ties in set order).
 uint pk_blend_slot(uint i) {
@@ -111,11 +118,66 @@ float pk_distance_to_volume(uint s, vec3 local) {
     return length(max(max(box_min - local, local - box_max), 0.0));
 }
 
+#if PK_MAX_VOLUMES != 8
+#error "pk_fetch_planes and pk_indirection_entry have one case per slot: update them"
+#endif
+
+bool pk_is_bricked(uint s) {
+    return (pk_volume_set.volumes[s].resolution.w & PK_VOLUME_FLAG_BRICKED) != 0u;
+}
+
+// The indirection entry of finest cell c of slot s (one case per slot: constant indices).
+uint pk_indirection_entry(uint s, ivec3 c) {
+    switch (s) {
+    case 0: return texelFetch(pk_indirection[0], c, 0).x;
+    case 1: return texelFetch(pk_indirection[1], c, 0).x;
+    case 2: return texelFetch(pk_indirection[2], c, 0).x;
+    case 3: return texelFetch(pk_indirection[3], c, 0).x;
+    case 4: return texelFetch(pk_indirection[4], c, 0).x;
+    case 5: return texelFetch(pk_indirection[5], c, 0).x;
+    case 6: return texelFetch(pk_indirection[6], c, 0).x;
+    default: return texelFetch(pk_indirection[7], c, 0).x;
+    }
+}
+
+// Atlas texture coordinate of brick-local coordinates l (in [0, 3]) of brick `index`: texel
+// slot * 4 + 0.5 + l (probe_volume_layout.h), where linear filtering interpolates exactly the
+// brick's probes floor(l) and floor(l) + 1 with weights fract(l), never a neighbouring slot.
+// Mirrors runtime::brickAtlasSlot.
+vec3 pk_atlas_uvw(uint s, uint index, vec3 l) {
+    const uvec3 a = pk_volume_set.volumes[s].bricks.xyz;
+    const uvec3 slot = uvec3(index % a.x, (index / a.x) % a.y, index / (a.x * a.y));
+    return (vec3(slot * PK_BRICK_SIZE) + 0.5 + l) / vec3(a * PK_BRICK_SIZE);
+}
+
+// Texture coordinate of the bricked steps B1-B3 of the sampler.hpp specification
+// (runtime::sampleVolumeSh's sampleBrickedSh and brick::locate, term for term): the point in
+// finest-cell units, its cell's brick from the indirection, brick-local coordinates, then the
+// brick's atlas slot; the hardware filter does B3's trilinear interpolation.
+vec3 pk_brick_uvw(uint s, vec3 local) {
+    const uvec3 cells = pk_volume_set.volumes[s].resolution.xyz;
+    const vec3 box_min = pk_volume_set.volumes[s].boxMin.xyz;
+    const vec3 box_max = pk_volume_set.volumes[s].boxMax.xyz;
+    vec3 f = (local - box_min) / (box_max - box_min) * vec3(cells);
+    f = mix(f, vec3(0.0), isnan(f));
+    f = clamp(f, vec3(0.0), vec3(cells));
+    const uvec3 c = min(uvec3(f), cells - 1u);
+    const uint entry = pk_indirection_entry(s, ivec3(c));
+    const uint level = entry & 3u;
+    const uint span = 1u << (pk_volume_set.volumes[s].bricks.w - level);
+    const uvec3 origin = (c / span) * span;
+    const vec3 l = clamp((f - vec3(origin)) * (3.0 / float(span)), vec3(0.0), vec3(3.0));
+    return pk_atlas_uvw(s, entry >> 2u, l);
+}
+
 // Texture coordinate of steps 1-3 of the sampler.hpp specification: grid coordinates
 // (grid::GridLayout::localToGrid), clamped to [0, res - 1] (runtime's axisTaps; NaN -> 0), at
 // (g + 0.5) / res, where linear filtering with clamp-to-edge interpolates exactly the probes
-// floor(g) and floor(g) + 1 with weights fract(g).
+// floor(g) and floor(g) + 1 with weights fract(g). Bricked volumes: pk_brick_uvw.
 vec3 pk_volume_uvw(uint s, vec3 local) {
+    if (pk_is_bricked(s)) {
+        return pk_brick_uvw(s, local);
+    }
     const vec4 spacing = pk_volume_set.volumes[s].spacing;
     const vec3 res = vec3(pk_volume_set.volumes[s].resolution.xyz);
     vec3 g = (local - pk_volume_set.volumes[s].boxMin.xyz) / spacing.xyz - spacing.w;
@@ -123,10 +185,6 @@ vec3 pk_volume_uvw(uint s, vec3 local) {
     g = clamp(g, vec3(0.0), res - 1.0);
     return (g + 0.5) / res;
 }
-
-#if PK_MAX_VOLUMES != 8
-#error "pk_fetch_planes has one case per slot: update it with PK_MAX_VOLUMES"
-#endif
 
 #define PK_FETCH_L1(STATE, S, UVW, T)                                                          \
     T[0] = textureLod(sampler3D(STATE[(S)*PK_MAX_PLANES + 0], pk_linear_clamp), UVW, 0.0);     \
@@ -253,11 +311,20 @@ vec3 pk_irradiance(vec3 world_position, vec3 normal) {
 }
 
 // Irradiance from one probe's own coefficients, no interpolation: sh::irradiance of
-// Volume::probe. At a texel centre (probe + 0.5) / res, exact for power-of-two resolutions,
-// linear filtering weighs that texel alone.
+// Volume::probe. `probe`: grid coordinates (dense) or, for a bricked volume, (brick index,
+// probe index in the brick 0..63, 0). At a texel centre ((probe + 0.5) / res, exact for
+// power-of-two resolutions; the atlas texel of the brick probe, whose size A * 4 need not be a
+// power of two, so the centre is within a float rounding of exact), linear filtering weighs that
+// texel alone.
 vec3 pk_probe_irradiance(uint s, uvec3 probe, vec3 n) {
     vec4 t[PK_MAX_PLANES];
-    pk_fetch_planes(s, (vec3(probe) + 0.5) / vec3(pk_volume_set.volumes[s].resolution.xyz), t);
+    if (pk_is_bricked(s)) {
+        const uint k = probe.y;
+        pk_fetch_planes(s, pk_atlas_uvw(s, probe.x, vec3(k & 3u, (k >> 2u) & 3u, k >> 4u)), t);
+    } else {
+        pk_fetch_planes(s, (vec3(probe) + 0.5) / vec3(pk_volume_set.volumes[s].resolution.xyz),
+                        t);
+    }
     vec3 sh[9];
     pk_unpack_probe(t, (pk_volume_set.volumes[s].resolution.w & PK_VOLUME_FLAG_L2) != 0u, sh);
     return pk_sh_irradiance(sh, n);

@@ -20,22 +20,35 @@ using uvec4 = glm::uvec4;
 #endif
 
 // Volumes one set can hold; pk_irradiance blends all of them. 8 volumes x 7 planes x 2 states
-// = 112 sampled images, within lavapipe's 128 per shader stage (Vulkan's portable minimum is
-// far lower; desktop drivers allow thousands).
+// + 8 indirection images = 120 sampled images, within lavapipe's 128 per shader stage (Vulkan's
+// portable minimum is far lower; desktop drivers allow thousands).
 #define PK_MAX_VOLUMES 8
 // Texel planes per volume state: 3 for L1, 7 for L2 (formats/.../volume.hpp).
 #define PK_MAX_PLANES 7
 
 // Descriptor bindings of the volume set (descriptor set PK_VOLUME_SET in GLSL).
-#define PK_BINDING_VOLUMES 0  // uniform buffer: PkVolumeSetGpu
-#define PK_BINDING_STATE_A 1  // texture3D[PK_MAX_VOLUMES * PK_MAX_PLANES]: element 7 slot + plane
-#define PK_BINDING_STATE_B 2  // the same for the second state of each volume
-#define PK_BINDING_SAMPLER 3  // sampler: linear filtering, clamp-to-edge, no mipmaps
+#define PK_BINDING_VOLUMES 0 // uniform buffer: PkVolumeSetGpu
+#define PK_BINDING_STATE_A 1 // texture3D[PK_MAX_VOLUMES * PK_MAX_PLANES]: element 7 slot + plane
+#define PK_BINDING_STATE_B 2 // the same for the second state of each volume
+#define PK_BINDING_SAMPLER 3 // sampler: linear filtering, clamp-to-edge, no mipmaps
+#define PK_BINDING_INDIRECTION 4 // utexture3D[PK_MAX_VOLUMES]: element = slot (bricked only)
 
 // PkVolumeGpu.resolution.w flags.
-#define PK_VOLUME_FLAG_L2 1u    // 7 planes (L2) rather than 3 (L1)
-#define PK_VOLUME_FLAG_BLEND 2u // mix state A and state B by boxMax.w
+#define PK_VOLUME_FLAG_L2 1u      // 7 planes (L2) rather than 3 (L1)
+#define PK_VOLUME_FLAG_BLEND 2u   // mix state A and state B by boxMax.w
+#define PK_VOLUME_FLAG_BRICKED 4u // bricked layout (formats/.../brick.hpp): indirection + atlas
 
+// Bricked volumes (brick.hpp; sampled by pk_brick_uvw, the twin of runtime::sampleVolumeSh):
+//  * The indirection image (R32_UINT, one texel per finest cell, extent = finest cells) holds
+//    PK_BRICK_ENTRY(brick index, brick level) per cell: index * 4 + level.
+//  * Each texel plane (and state) is one 3D brick atlas (the volume's storage format) of
+//    bricks.xyz * PK_BRICK_SIZE texels: brick b's 4 x 4 x 4 probes (x fastest, as stored) fill
+//    the slot (b % A.x, (b / A.x) % A.y, b / (A.x * A.y)), A = bricks.xyz
+//    (runtime::brickAtlasSlots chooses A), texels slot * 4 .. slot * 4 + 3. Probe-local
+//    coordinates in [0, 3] sample texel coordinate slot * 4 + 0.5 + local, so hardware
+//    trilinear filtering never reaches a neighbouring slot.
+#define PK_BRICK_SIZE 4u
+#define PK_BRICK_ENTRY(index, level) ((index)*4u + (level))
 // One volume. World -> local is the inverse of the volume's rigid frame:
 // local = R^T (world - t), with the rows of R^T in xyz and t in w.
 struct PkVolumeGpu {
@@ -44,9 +57,12 @@ struct PkVolumeGpu {
     vec4 worldToLocal2; // bytes  32..47: row 2 of R^T; w = t.z (m)
     vec4 boxMin;        // bytes  48..63: local box min (m); w = fade distance (m, 0 = hard)
     vec4 boxMax;        // bytes  64..79: local box max (m); w = state blend factor in [0, 1]
-    vec4 spacing;       // bytes  80..95: probe spacing per axis (m); w = grid offset (0.5
-                        //                center mode, 0 corner mode)
-    uvec4 resolution;   // bytes 96..111: probes per axis; w = PK_VOLUME_FLAG_* bits
+    vec4 spacing;       // bytes  80..95: dense: probe spacing per axis (m); w = grid offset
+                        //                (0.5 center mode, 0 corner mode). Bricked: zero
+    uvec4 resolution;   // bytes 96..111: dense: probes per axis; bricked: finest cells per
+                        //                axis; w = PK_VOLUME_FLAG_* bits
+    uvec4 bricks;       // bytes 112..127: bricked: xyz = atlas slots per axis (A), w = max
+                        //                 level; dense: zero
 };
 
 // The whole set: one uniform buffer.
@@ -56,7 +72,7 @@ struct PkVolumeSetGpu {
     uvec4 order[PK_MAX_VOLUMES / 4];     // bytes 32..63: blending order, slot of the i-th
                                          //   volume at order[i / 4][i % 4] (descending
                                          //   priority, ties in set order)
-    PkVolumeGpu volumes[PK_MAX_VOLUMES]; // bytes 64..959: by slot (= index in the set)
+    PkVolumeGpu volumes[PK_MAX_VOLUMES]; // bytes 64..1087: by slot (= index in the set)
 };
 
 #ifdef __cplusplus
@@ -68,12 +84,13 @@ static_assert(offsetof(PkVolumeGpu, boxMin) == 48);
 static_assert(offsetof(PkVolumeGpu, boxMax) == 64);
 static_assert(offsetof(PkVolumeGpu, spacing) == 80);
 static_assert(offsetof(PkVolumeGpu, resolution) == 96);
-static_assert(sizeof(PkVolumeGpu) == 112, "std140 array stride of PkVolumeGpu");
+static_assert(offsetof(PkVolumeGpu, bricks) == 112);
+static_assert(sizeof(PkVolumeGpu) == 128, "std140 array stride of PkVolumeGpu");
 static_assert(offsetof(PkVolumeSetGpu, header) == 0);
 static_assert(offsetof(PkVolumeSetGpu, params) == 16);
 static_assert(offsetof(PkVolumeSetGpu, order) == 32);
 static_assert(offsetof(PkVolumeSetGpu, volumes) == 64);
-static_assert(sizeof(PkVolumeSetGpu) == 64 + 112 * PK_MAX_VOLUMES);
+static_assert(sizeof(PkVolumeSetGpu) == 64 + 128 * PK_MAX_VOLUMES);
 static_assert(PK_MAX_VOLUMES % 4 == 0, "order[] packs four slots per uvec4");
 } // namespace probekit::gpu
 #endif

@@ -37,18 +37,16 @@ std::string slotName(size_t index, const VolumeDesc& desc) {
     return "volume " + std::to_string(index) + " (\"" + desc.name + "\")";
 }
 
-// Whether `incoming` can be written into images made for `current`; the reason when not.
-std::string layoutMismatch(const VolumeDesc& current, const VolumeDesc& incoming) {
-    const glm::uvec3 a = current.grid.resolution();
-    const glm::uvec3 b = incoming.grid.resolution();
-    if (a != b) {
-        return "resolution " + std::to_string(b.x) + "x" + std::to_string(b.y) + "x" +
-               std::to_string(b.z) + " differs from the uploaded " + std::to_string(a.x) + "x" +
-               std::to_string(a.y) + "x" + std::to_string(a.z);
-    }
-    if (current.grid.mode() != incoming.grid.mode()) {
-        return "position mode differs";
-    }
+std::string extentText(glm::uvec3 e) {
+    return std::to_string(e.x) + "x" + std::to_string(e.y) + "x" + std::to_string(e.z);
+}
+
+bool isBricked(const VolumeDesc& desc) {
+    return desc.layout == VolumeLayout::Bricked;
+}
+
+// Whether `incoming` has `current`'s texel format; the reason when not.
+std::string formatMismatch(const VolumeDesc& current, const VolumeDesc& incoming) {
     if (current.shOrder != incoming.shOrder) {
         return "SH order differs";
     }
@@ -57,6 +55,33 @@ std::string layoutMismatch(const VolumeDesc& current, const VolumeDesc& incoming
                " differs from the uploaded " + std::string(toString(current.storage));
     }
     return {};
+}
+
+// Whether `incoming` can be written into images made for `current`; the reason when not.
+std::string layoutMismatch(const VolumeDesc& current, const VolumeDesc& incoming) {
+    if (isBricked(current) != isBricked(incoming)) {
+        return std::string("layout ") + std::string(toString(incoming.layout)) +
+               " differs from the uploaded " + std::string(toString(current.layout));
+    }
+    if (isBricked(current)) {
+        if (current.grid.resolution() != incoming.grid.resolution()) {
+            return "top bricks " + extentText(incoming.grid.resolution()) +
+                   " differ from the uploaded " + extentText(current.grid.resolution());
+        }
+        if (current.bricks != incoming.bricks) {
+            return "brick layout differs from the uploaded one";
+        }
+        return formatMismatch(current, incoming);
+    }
+    const glm::uvec3 a = current.grid.resolution();
+    const glm::uvec3 b = incoming.grid.resolution();
+    if (a != b) {
+        return "resolution " + extentText(b) + " differs from the uploaded " + extentText(a);
+    }
+    if (current.grid.mode() != incoming.grid.mode()) {
+        return "position mode differs";
+    }
+    return formatMismatch(current, incoming);
 }
 
 } // namespace
@@ -71,7 +96,37 @@ std::vector<uint32_t> blendOrder(std::span<const VolumeDesc> descs) {
     return order;
 }
 
-gpu::PkVolumeGpu packVolumeGpu(const VolumeDesc& desc, float blend) {
+Result<glm::uvec3> brickAtlasSlots(size_t brick_count, uint32_t max_image_dimension_3d) {
+    const uint64_t n = brick_count;
+    const uint64_t limit = max_image_dimension_3d / PK_BRICK_SIZE;
+    if (n == 0 || limit == 0 || n > limit * limit * limit) {
+        return makeError(ErrorCode::OutOfRange,
+                         std::to_string(n) + " bricks do not fit a brick atlas of at most " +
+                             std::to_string(limit) + " slots per axis (maxImageDimension3D " +
+                             std::to_string(max_image_dimension_3d) + ")");
+    }
+    // Integer roots, so the shape does not depend on floating-point rounding.
+    uint64_t x = 1;
+    while (x * x * x < n) {
+        ++x;
+    }
+    x = std::min(x, limit);
+    const uint64_t rows = (n + x - 1) / x;
+    uint64_t y = 1;
+    while (y * y < rows) {
+        ++y;
+    }
+    y = std::min(y, limit);
+    const uint64_t z = (n + x * y - 1) / (x * y);
+    return glm::uvec3(uint32_t(x), uint32_t(y), uint32_t(z));
+}
+
+glm::uvec3 brickAtlasSlot(uint32_t index, glm::uvec3 atlas_slots) {
+    return {index % atlas_slots.x, (index / atlas_slots.x) % atlas_slots.y,
+            index / (atlas_slots.x * atlas_slots.y)};
+}
+
+gpu::PkVolumeGpu packVolumeGpu(const VolumeDesc& desc, float blend, glm::uvec3 atlas_slots) {
     const grid::GridLayout& layout = desc.grid;
     // Columns of R^T; row i of R^T is (m[0][i], m[1][i], m[2][i]).
     const glm::mat3 m = glm::mat3_cast(glm::conjugate(layout.frame().rotation));
@@ -82,8 +137,6 @@ gpu::PkVolumeGpu packVolumeGpu(const VolumeDesc& desc, float blend) {
     v.worldToLocal2 = glm::vec4(m[0][2], m[1][2], m[2][2], t.z);
     v.boxMin = glm::vec4(layout.bounds().min, desc.fadeDistance);
     v.boxMax = glm::vec4(layout.bounds().max, blend);
-    v.spacing =
-        glm::vec4(layout.spacing(), layout.mode() == grid::PositionMode::Center ? 0.5f : 0.0f);
     uint32_t flags = 0;
     if (desc.shOrder == sh::Order::L2) {
         flags |= PK_VOLUME_FLAG_L2;
@@ -91,13 +144,24 @@ gpu::PkVolumeGpu packVolumeGpu(const VolumeDesc& desc, float blend) {
     if (blend > 0.0f) {
         flags |= PK_VOLUME_FLAG_BLEND;
     }
-    v.resolution = glm::uvec4(layout.resolution(), flags);
+    if (isBricked(desc)) {
+        flags |= PK_VOLUME_FLAG_BRICKED;
+        v.resolution =
+            glm::uvec4(brick::finestCells(layout.resolution(), desc.bricks.maxLevel), flags);
+        v.bricks = glm::uvec4(atlas_slots, desc.bricks.maxLevel);
+    } else {
+        v.spacing =
+            glm::vec4(layout.spacing(), layout.mode() == grid::PositionMode::Center ? 0.5f : 0.0f);
+        v.resolution = glm::uvec4(layout.resolution(), flags);
+    }
     return v;
 }
 
 gpu::PkVolumeSetGpu packVolumeSetGpu(std::span<const VolumeDesc> descs,
-                                     std::span<const float> blends, float normal_offset) {
+                                     std::span<const float> blends, float normal_offset,
+                                     std::span<const glm::uvec3> atlas_slots) {
     assert(!descs.empty() && descs.size() <= kMaxGpuVolumes && blends.size() == descs.size());
+    assert(atlas_slots.empty() || atlas_slots.size() == descs.size());
     gpu::PkVolumeSetGpu set{};
     set.header = glm::uvec4(uint32_t(descs.size()), 0u, 0u, 0u);
     set.params = glm::vec4(normal_offset, 0.0f, 0.0f, 0.0f);
@@ -106,7 +170,8 @@ gpu::PkVolumeSetGpu packVolumeSetGpu(std::span<const VolumeDesc> descs,
         set.order[i / 4][int(i % 4)] = order[i];
     }
     for (size_t i = 0; i < descs.size(); ++i) {
-        set.volumes[i] = packVolumeGpu(descs[i], blends[i]);
+        set.volumes[i] = packVolumeGpu(descs[i], blends[i],
+                                       atlas_slots.empty() ? glm::uvec3(0u) : atlas_slots[i]);
     }
     return set;
 }
@@ -118,6 +183,7 @@ size_t texelBoxBytes(const Volume& volume, glm::uvec3 count) {
 void packTexelBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count,
                   std::span<uint8_t> bytes) {
     const grid::GridLayout& layout = volume.desc.grid;
+    assert(!isBricked(volume.desc));
     assert(glm::all(glm::greaterThanEqual(count, glm::uvec3(1u))));
     assert(glm::all(glm::lessThanEqual(first + count, layout.resolution())));
     assert(bytes.size() == texelBoxBytes(volume, count));
@@ -141,7 +207,7 @@ void packTexelBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count,
 }
 
 Result<VkDescriptorSetLayout> createVolumeSetLayout(const GpuContext& context) {
-    std::array<VkDescriptorSetLayoutBinding, 4> bindings{};
+    std::array<VkDescriptorSetLayoutBinding, 5> bindings{};
     bindings[0] = {PK_BINDING_VOLUMES, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_ALL,
                    nullptr};
     bindings[1] = {PK_BINDING_STATE_A, VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE, kPlaneElements,
@@ -149,6 +215,8 @@ Result<VkDescriptorSetLayout> createVolumeSetLayout(const GpuContext& context) {
     bindings[2] = {PK_BINDING_STATE_B, VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE, kPlaneElements,
                    VK_SHADER_STAGE_ALL, nullptr};
     bindings[3] = {PK_BINDING_SAMPLER, VK_DESCRIPTOR_TYPE_SAMPLER, 1, VK_SHADER_STAGE_ALL, nullptr};
+    bindings[4] = {PK_BINDING_INDIRECTION, VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE, PK_MAX_VOLUMES,
+                   VK_SHADER_STAGE_ALL, nullptr};
     VkDescriptorSetLayoutCreateInfo info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
     info.bindingCount = uint32_t(bindings.size());
     info.pBindings = bindings.data();
@@ -168,7 +236,18 @@ struct Slot {
     std::vector<uint8_t> validity;
     StateImages states[2];
     float blend = 0.0f;
+    // Bricked only: the atlas shape (brickAtlasSlots) and the indirection image, shared by both
+    // states (a second state has the primary's layout).
+    glm::uvec3 atlasSlots{0u};
+    Image indirection;
 };
+
+// Extent of one texel-plane image: the grid (dense) or the brick atlas (bricked).
+VkExtent3D planeExtent(const Slot& slot) {
+    const glm::uvec3 e =
+        isBricked(slot.desc) ? slot.atlasSlots * PK_BRICK_SIZE : slot.desc.grid.resolution();
+    return {e.x, e.y, e.z};
+}
 
 struct GpuVolumeSet::Impl {
     GpuContext* context = nullptr;
@@ -176,7 +255,8 @@ struct GpuVolumeSet::Impl {
     VkDescriptorPool pool = VK_NULL_HANDLE;
     VkDescriptorSet set = VK_NULL_HANDLE;
     VkSampler sampler = VK_NULL_HANDLE;
-    Image dummy; // bound to every element no plane uses
+    Image dummy;            // bound to every element no plane uses
+    Image dummyIndirection; // bound to every indirection element no bricked volume uses
     Buffer uniforms;
     Buffer staging; // reused and grown across uploads
     std::vector<Slot> slots;
@@ -188,10 +268,17 @@ struct GpuVolumeSet::Impl {
     VkDevice device() const { return context->device(); }
     gpu::PkVolumeSetGpu packUniforms() const;
     Result<void> allocateState(const Slot& slot, StateImages& state);
+    // The images of a slot's primary state (and, bricked, its atlas shape and indirection).
+    Result<void> allocateLayout(Slot& slot);
+    void releaseImages(Slot& slot);
     Result<void> initDummy();
     Result<void> writeDescriptors();
+    Result<void> ensureStaging(size_t bytes);
     Result<void> upload(size_t index, VolumeState which, const Volume& source, glm::uvec3 first,
                         glm::uvec3 count);
+    Result<void> uploadBricked(size_t index, VolumeState which, const Volume& source);
+    // The whole of `source` into a state: upload or uploadBricked.
+    Result<void> uploadWhole(size_t index, VolumeState which, const Volume& source);
     void recordUniforms(VkCommandBuffer cmd);
 };
 
@@ -203,13 +290,10 @@ GpuVolumeSet::Impl::~Impl() {
     // Earlier submissions may still read the images.
     vkQueueWaitIdle(context->queue());
     for (Slot& slot : slots) {
-        for (StateImages& state : slot.states) {
-            for (Image& image : state.planes) {
-                detail::destroy(d, image);
-            }
-        }
+        releaseImages(slot);
     }
     detail::destroy(d, dummy);
+    detail::destroy(d, dummyIndirection);
     detail::destroy(d, uniforms);
     detail::destroy(d, staging);
     if (sampler != VK_NULL_HANDLE) {
@@ -226,19 +310,20 @@ GpuVolumeSet::Impl::~Impl() {
 gpu::PkVolumeSetGpu GpuVolumeSet::Impl::packUniforms() const {
     std::vector<VolumeDesc> descs;
     std::vector<float> blends;
+    std::vector<glm::uvec3> atlas_slots;
     for (const Slot& slot : slots) {
         descs.push_back(slot.desc);
         // A second state counts once it holds data (an upload that failed leaves none).
         blends.push_back(slot.states[1].initialised ? slot.blend : 0.0f);
+        atlas_slots.push_back(slot.atlasSlots);
     }
-    return packVolumeSetGpu(descs, blends, normalOffset);
+    return packVolumeSetGpu(descs, blends, normalOffset, atlas_slots);
 }
 
 Result<void> GpuVolumeSet::Impl::allocateState(const Slot& slot, StateImages& state) {
-    const glm::uvec3 res = slot.desc.grid.resolution();
     for (uint32_t p = 0; p < planeCount(slot.desc.shOrder); ++p) {
         Result<Image> image = detail::createImage(
-            *context, VK_IMAGE_TYPE_3D, texelFormat(slot.desc.storage), {res.x, res.y, res.z},
+            *context, VK_IMAGE_TYPE_3D, texelFormat(slot.desc.storage), planeExtent(slot),
             VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
             VK_IMAGE_ASPECT_COLOR_BIT);
         if (!image) {
@@ -250,28 +335,91 @@ Result<void> GpuVolumeSet::Impl::allocateState(const Slot& slot, StateImages& st
     return {};
 }
 
-Result<void> GpuVolumeSet::Impl::initDummy() {
+Result<void> GpuVolumeSet::Impl::allocateLayout(Slot& slot) {
+    if (isBricked(slot.desc)) {
+        const uint32_t max_dimension = context->limits().maxImageDimension3D;
+        const glm::uvec3 cells =
+            brick::finestCells(slot.desc.grid.resolution(), slot.desc.bricks.maxLevel);
+        if (glm::any(glm::greaterThan(cells, glm::uvec3(max_dimension)))) {
+            return makeError(ErrorCode::OutOfRange,
+                             "indirection of " + extentText(cells) +
+                                 " finest cells exceeds the device's maxImageDimension3D " +
+                                 std::to_string(max_dimension));
+        }
+        Result<glm::uvec3> atlas = brickAtlasSlots(slot.desc.bricks.bricks.size(), max_dimension);
+        if (!atlas) {
+            return atlas.error();
+        }
+        slot.atlasSlots = atlas.value();
+        Result<Image> image = detail::createImage(
+            *context, VK_IMAGE_TYPE_3D, VK_FORMAT_R32_UINT, {cells.x, cells.y, cells.z},
+            VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
+            VK_IMAGE_ASPECT_COLOR_BIT);
+        if (!image) {
+            return image.error();
+        }
+        slot.indirection = image.value();
+    } else {
+        slot.atlasSlots = glm::uvec3(0u);
+    }
+    return allocateState(slot, slot.states[0]);
+}
+
+void GpuVolumeSet::Impl::releaseImages(Slot& slot) {
+    for (StateImages& state : slot.states) {
+        for (Image& image : state.planes) {
+            detail::destroy(device(), image);
+        }
+        state = StateImages{};
+    }
+    detail::destroy(device(), slot.indirection);
+}
+
+namespace {
+
+// A 1 x 1 x 1 image cleared to zero, ready to be sampled.
+Result<Image> createZeroImage(GpuContext& context, VkFormat format) {
     Result<Image> image = detail::createImage(
-        *context, VK_IMAGE_TYPE_3D, VK_FORMAT_R16G16B16A16_SFLOAT, {1, 1, 1},
+        context, VK_IMAGE_TYPE_3D, format, {1, 1, 1},
         VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT);
     if (!image) {
         return image.error();
     }
-    dummy = image.value();
-    return context->submitAndWait([this](VkCommandBuffer cmd) {
+    const VkImage handle = image.value().image;
+    Result<void> cleared = context.submitAndWait([handle](VkCommandBuffer cmd) {
         const VkImageSubresourceRange range{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
-        detail::imageBarrier(cmd, dummy.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
+        detail::imageBarrier(cmd, handle, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                              VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
                              VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, 0, VK_PIPELINE_STAGE_TRANSFER_BIT,
                              VK_ACCESS_TRANSFER_WRITE_BIT);
         const VkClearColorValue zero{};
-        vkCmdClearColorImage(cmd, dummy.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &zero, 1,
-                             &range);
+        vkCmdClearColorImage(cmd, handle, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &zero, 1, &range);
         detail::imageBarrier(
-            cmd, dummy.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+            cmd, handle, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
             VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TRANSFER_BIT,
             VK_ACCESS_TRANSFER_WRITE_BIT, kAnyStage, VK_ACCESS_SHADER_READ_BIT);
     });
+    if (!cleared) {
+        detail::destroy(context.device(), image.value());
+        return cleared.error();
+    }
+    return image;
+}
+
+} // namespace
+
+Result<void> GpuVolumeSet::Impl::initDummy() {
+    Result<Image> plane = createZeroImage(*context, VK_FORMAT_R16G16B16A16_SFLOAT);
+    if (!plane) {
+        return plane.error();
+    }
+    dummy = plane.value();
+    Result<Image> indirection = createZeroImage(*context, VK_FORMAT_R32_UINT);
+    if (!indirection) {
+        return indirection.error();
+    }
+    dummyIndirection = indirection.value();
+    return {};
 }
 
 Result<void> GpuVolumeSet::Impl::writeDescriptors() {
@@ -289,9 +437,16 @@ Result<void> GpuVolumeSet::Impl::writeDescriptors() {
             }
         }
     }
+    std::array<VkDescriptorImageInfo, PK_MAX_VOLUMES> indirections{};
+    for (uint32_t s = 0; s < PK_MAX_VOLUMES; ++s) {
+        const bool bricked = s < slots.size() && slots[s].indirection.view != VK_NULL_HANDLE;
+        indirections[s] = {VK_NULL_HANDLE,
+                           bricked ? slots[s].indirection.view : dummyIndirection.view,
+                           VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    }
     const VkDescriptorBufferInfo buffer{uniforms.buffer, 0, sizeof(gpu::PkVolumeSetGpu)};
     const VkDescriptorImageInfo sampler_info{sampler, VK_NULL_HANDLE, VK_IMAGE_LAYOUT_UNDEFINED};
-    std::array<VkWriteDescriptorSet, 4> writes{};
+    std::array<VkWriteDescriptorSet, 5> writes{};
     for (VkWriteDescriptorSet& w : writes) {
         w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
         w.dstSet = set;
@@ -312,6 +467,10 @@ Result<void> GpuVolumeSet::Impl::writeDescriptors() {
     writes[3].descriptorCount = 1;
     writes[3].descriptorType = VK_DESCRIPTOR_TYPE_SAMPLER;
     writes[3].pImageInfo = &sampler_info;
+    writes[4].dstBinding = PK_BINDING_INDIRECTION;
+    writes[4].descriptorCount = PK_MAX_VOLUMES;
+    writes[4].descriptorType = VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE;
+    writes[4].pImageInfo = indirections.data();
     vkUpdateDescriptorSets(device(), uint32_t(writes.size()), writes.data(), 0, nullptr);
     return {};
 }
@@ -346,15 +505,7 @@ Result<void> GpuVolumeSet::Impl::upload(size_t index, VolumeState which, const V
     assert(state.initialised || whole);
 
     const size_t bytes = texelBoxBytes(source, count);
-    if (staging.size < bytes) {
-        detail::destroy(device(), staging);
-        Result<Buffer> buffer =
-            detail::createBuffer(*context, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
-        if (!buffer) {
-            return buffer.error();
-        }
-        staging = buffer.value();
-    }
+    PK_TRY(ensureStaging(bytes));
     // The previous upload waited for its copy, so the staging memory is free to overwrite.
     packTexelBox(source, first, count, {static_cast<uint8_t*>(staging.mapped), bytes});
 
@@ -391,6 +542,119 @@ Result<void> GpuVolumeSet::Impl::upload(size_t index, VolumeState which, const V
     state.initialised = true;
     uploaded += bytes;
     return {};
+}
+
+Result<void> GpuVolumeSet::Impl::ensureStaging(size_t bytes) {
+    if (staging.size < bytes) {
+        detail::destroy(device(), staging);
+        Result<Buffer> buffer =
+            detail::createBuffer(*context, bytes, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
+        if (!buffer) {
+            return buffer.error();
+        }
+        staging = buffer.value();
+    }
+    return {};
+}
+
+Result<void> GpuVolumeSet::Impl::uploadBricked(size_t index, VolumeState which,
+                                               const Volume& source) {
+    Slot& slot = slots[index];
+    StateImages& state = slot.states[size_t(which)];
+    const bool primary = which == VolumeState::Primary;
+    // The stored planes are already brick after brick, each brick's 64 texels a 4 x 4 x 4 box
+    // (x fastest): they are staged as they are, one copy region per brick.
+    const size_t texel_bytes = source.texelBytes();
+    const size_t indirection_bytes = primary ? source.indirection.size() * sizeof(uint32_t) : 0;
+    const size_t bytes = texel_bytes + indirection_bytes;
+    PK_TRY(ensureStaging(bytes));
+    auto* out = static_cast<uint8_t*>(staging.mapped);
+    std::memcpy(out,
+                source.desc.storage == Storage::Float32
+                    ? static_cast<const void*>(source.texelsF32.data())
+                    : static_cast<const void*>(source.texelsF16.data()),
+                texel_bytes);
+    if (primary) {
+        const std::vector<brick::Brick>& bricks = source.desc.bricks.bricks;
+        auto* entries = reinterpret_cast<uint32_t*>(out + texel_bytes);
+        for (size_t c = 0; c < source.indirection.size(); ++c) {
+            const uint32_t b = source.indirection[c];
+            entries[c] = PK_BRICK_ENTRY(b, uint32_t(bricks[b].level));
+        }
+    }
+
+    const size_t brick_count = source.desc.bricks.bricks.size();
+    const size_t texel_size = texelSize(source.desc.storage);
+    std::vector<VkBufferImageCopy> regions(brick_count);
+    PK_TRY(context->submitAndWait([&](VkCommandBuffer cmd) {
+        const VkImageSubresourceRange range{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+        const VkClearColorValue zero{};
+        for (uint32_t p = 0; p < source.planes(); ++p) {
+            const Image& image = state.planes[p];
+            // Waits for every shader read submitted earlier (write-after-read). Unused slots
+            // are cleared: a filter tap of weight 0 next to a slot must not read a NaN.
+            detail::imageBarrier(cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT,
+                                 VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                                 kAnyStage, 0, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                                 VK_ACCESS_TRANSFER_WRITE_BIT);
+            vkCmdClearColorImage(cmd, image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &zero, 1,
+                                 &range);
+            detail::imageBarrier(cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT,
+                                 VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                                 VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                                 VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+                                 VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
+            for (size_t b = 0; b < brick_count; ++b) {
+                const glm::uvec3 origin =
+                    brickAtlasSlot(uint32_t(b), slot.atlasSlots) * PK_BRICK_SIZE;
+                VkBufferImageCopy& region = regions[b];
+                region = {};
+                region.bufferOffset =
+                    (p * source.probeCount() + b * brick::kBrickProbeCount) * texel_size;
+                region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+                region.imageOffset = {int32_t(origin.x), int32_t(origin.y), int32_t(origin.z)};
+                region.imageExtent = {PK_BRICK_SIZE, PK_BRICK_SIZE, PK_BRICK_SIZE};
+            }
+            vkCmdCopyBufferToImage(cmd, staging.buffer, image.image,
+                                   VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, uint32_t(brick_count),
+                                   regions.data());
+            detail::imageBarrier(
+                cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                VK_ACCESS_TRANSFER_WRITE_BIT, kAnyStage, VK_ACCESS_SHADER_READ_BIT);
+        }
+        if (primary) {
+            const Image& image = slot.indirection;
+            detail::imageBarrier(cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT,
+                                 VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                                 kAnyStage, 0, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                                 VK_ACCESS_TRANSFER_WRITE_BIT);
+            VkBufferImageCopy region{};
+            region.bufferOffset = texel_bytes;
+            region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+            region.imageExtent = image.extent;
+            vkCmdCopyBufferToImage(cmd, staging.buffer, image.image,
+                                   VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
+            detail::imageBarrier(
+                cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                VK_ACCESS_TRANSFER_WRITE_BIT, kAnyStage, VK_ACCESS_SHADER_READ_BIT);
+        }
+        if (dirty) {
+            recordUniforms(cmd);
+        }
+    }));
+    state.initialised = true;
+    uploaded += bytes;
+    return {};
+}
+
+Result<void> GpuVolumeSet::Impl::uploadWhole(size_t index, VolumeState which,
+                                             const Volume& source) {
+    if (isBricked(source.desc)) {
+        return uploadBricked(index, which, source);
+    }
+    return upload(index, which, source, glm::uvec3(0u), source.desc.grid.resolution());
 }
 
 GpuVolumeSet::GpuVolumeSet(std::unique_ptr<Impl> impl) : m_impl(std::move(impl)) {}
@@ -454,17 +718,19 @@ Result<GpuVolumeSet> GpuVolumeSet::create(GpuContext& context, std::span<const V
     impl->uniforms = uniforms.value();
     PK_TRY(impl->initDummy());
 
-    for (const Volume& volume : volumes) {
+    for (size_t i = 0; i < volumes.size(); ++i) {
         Slot slot;
-        slot.desc = volume.desc;
-        slot.validity = volume.validity;
+        slot.desc = volumes[i].desc;
+        slot.validity = volumes[i].validity;
         impl->slots.push_back(std::move(slot));
-        PK_TRY(impl->allocateState(impl->slots.back(), impl->slots.back().states[0]));
+        if (Result<void> allocated = impl->allocateLayout(impl->slots.back()); !allocated) {
+            return makeError(allocated.error().code,
+                             slotName(i, volumes[i].desc) + ": " + allocated.error().message);
+        }
     }
     PK_TRY(impl->writeDescriptors());
     for (size_t i = 0; i < volumes.size(); ++i) {
-        PK_TRY(impl->upload(i, VolumeState::Primary, volumes[i], glm::uvec3(0u),
-                            volumes[i].desc.grid.resolution()));
+        PK_TRY(impl->uploadWhole(i, VolumeState::Primary, volumes[i]));
     }
     return GpuVolumeSet(std::move(impl));
 }
@@ -500,9 +766,12 @@ float GpuVolumeSet::normalOffset() const {
 size_t GpuVolumeSet::texelBytes() const {
     size_t bytes = 0;
     for (const Slot& slot : m_impl->slots) {
-        const size_t one = size_t(planeCount(slot.desc.shOrder)) * slot.desc.grid.probeCount() *
+        const VkExtent3D e = planeExtent(slot);
+        const size_t one = size_t(planeCount(slot.desc.shOrder)) * e.width * e.height * e.depth *
                            texelSize(slot.desc.storage);
         bytes += slot.states[1].allocated ? 2 * one : one;
+        const VkExtent3D cells = slot.indirection.extent;
+        bytes += size_t(cells.width) * cells.height * cells.depth * sizeof(uint32_t);
     }
     return bytes;
 }
@@ -526,10 +795,33 @@ Result<void> GpuVolumeSet::replaceVolume(size_t index, const Volume& volume, Vol
     if (Result<void> valid = validateVolume(volume); !valid) {
         return makeError(valid.error().code, where + ": " + valid.error().message);
     }
-    if (std::string mismatch = layoutMismatch(slot.desc, volume.desc); !mismatch.empty()) {
+    const std::string mismatch = layoutMismatch(slot.desc, volume.desc);
+    // Bricked layouts may change on a primary replacement (new images); dense ones keep theirs.
+    const bool relayout = !mismatch.empty() && state == VolumeState::Primary &&
+                          (isBricked(slot.desc) || isBricked(volume.desc)) &&
+                          formatMismatch(slot.desc, volume.desc).empty();
+    if (!mismatch.empty() && !relayout) {
         return makeError(ErrorCode::InvalidArgument, where + ": replacement " + mismatch);
     }
-    if (state == VolumeState::Secondary) {
+    if (relayout && slot.states[1].allocated) {
+        return makeError(ErrorCode::InvalidArgument,
+                         where + ": replacement " + mismatch +
+                             ", and a volume with a second state keeps its layout");
+    }
+    if (relayout) {
+        // The set may be bound by work still in flight; replace the images once that is done.
+        PK_TRY(m_impl->context->waitIdle());
+        m_impl->releaseImages(slot);
+        slot.desc = volume.desc;
+        slot.validity = volume.validity;
+        m_impl->dirty = true;
+        Result<void> allocated = m_impl->allocateLayout(slot);
+        // Dead views must leave the set even when the allocation failed (dummies take over).
+        PK_TRY(m_impl->writeDescriptors());
+        if (!allocated) {
+            return makeError(allocated.error().code, where + ": " + allocated.error().message);
+        }
+    } else if (state == VolumeState::Secondary) {
         const grid::Aabb& a = slot.desc.grid.bounds();
         const grid::Aabb& b = volume.desc.grid.bounds();
         if (a.min != b.min || a.max != b.max) {
@@ -549,7 +841,7 @@ Result<void> GpuVolumeSet::replaceVolume(size_t index, const Volume& volume, Vol
         slot.validity = volume.validity;
         m_impl->dirty = true;
     }
-    return m_impl->upload(index, state, volume, glm::uvec3(0u), volume.desc.grid.resolution());
+    return m_impl->uploadWhole(index, state, volume);
 }
 
 Result<void> GpuVolumeSet::updateBox(size_t index, const Volume& source, glm::uvec3 first,
@@ -559,6 +851,11 @@ Result<void> GpuVolumeSet::updateBox(size_t index, const Volume& source, glm::uv
     const std::string where = slotName(index, slot.desc);
     if (Result<void> valid = validateVolume(source); !valid) {
         return makeError(valid.error().code, where + ": " + valid.error().message);
+    }
+    if (isBricked(slot.desc) || isBricked(source.desc)) {
+        return makeError(ErrorCode::InvalidArgument,
+                         where + ": updateBox takes dense volumes only (replace a bricked volume "
+                                 "whole with replaceVolume)");
     }
     if (std::string mismatch = layoutMismatch(slot.desc, source.desc); !mismatch.empty()) {
         return makeError(ErrorCode::InvalidArgument, where + ": box source " + mismatch);

@@ -48,16 +48,11 @@ float depthInside(const grid::Aabb& box, glm::vec3 local) {
     return std::min(to_faces.x, std::min(to_faces.y, to_faces.z));
 }
 
-} // namespace
-
-sh::ShRgb sampleVolumeSh(const Volume& volume, glm::vec3 world_position) {
-    const grid::GridLayout& layout = volume.desc.grid;
-    const glm::vec3 g = layout.worldToGrid(world_position);
-    const glm::uvec3 res = layout.resolution();
-    const AxisTaps tx = axisTaps(g.x, res.x);
-    const AxisTaps ty = axisTaps(g.y, res.y);
-    const AxisTaps tz = axisTaps(g.z, res.z);
-
+// Step 3 (and B4): the taps' stored texels of every plane, weighted and summed, then unpacked.
+// `probe_of(x, y, z)` gives the probe index of a tap's per-axis indices.
+template <class ProbeOf>
+sh::ShRgb interpolateTexels(const Volume& volume, const AxisTaps& tx, const AxisTaps& ty,
+                            const AxisTaps& tz, ProbeOf probe_of) {
     const uint32_t planes = volume.planes();
     glm::vec4 accumulated[7] = {};
     for (int k = 0; k < tz.count; ++k) {
@@ -65,8 +60,7 @@ sh::ShRgb sampleVolumeSh(const Volume& volume, glm::vec3 world_position) {
             const float wyz = ty.weight[j] * tz.weight[k];
             for (int i = 0; i < tx.count; ++i) {
                 const float w = tx.weight[i] * wyz;
-                const size_t probe =
-                    layout.linearIndex(glm::uvec3(tx.index[i], ty.index[j], tz.index[k]));
+                const size_t probe = probe_of(tx.index[i], ty.index[j], tz.index[k]);
                 // Volume::texel decodes half texels to float first, as a GPU's filtering does.
                 for (uint32_t p = 0; p < planes; ++p) {
                     accumulated[p] += w * volume.texel(p, probe);
@@ -75,6 +69,43 @@ sh::ShRgb sampleVolumeSh(const Volume& volume, glm::vec3 world_position) {
         }
     }
     return unpackProbe(accumulated, volume.desc.shOrder);
+}
+
+// Bricked steps B1-B4 of sampler.hpp; pk_brick_uvw (shaders/probe_volume.glsl) is the GPU twin,
+// whose hardware trilinear filtering inside the brick's atlas slot is the loop below.
+sh::ShRgb sampleBrickedSh(const Volume& volume, glm::vec3 world_position) {
+    const grid::GridLayout& layout = volume.desc.grid;
+    const brick::BrickLayout& bricks = volume.desc.bricks;
+    const glm::uvec3 top = layout.resolution();
+    const grid::Aabb& box = layout.bounds();
+    const glm::vec3 local = layout.frame().toLocal(world_position);
+    const glm::vec3 cell_coord =
+        (local - box.min) / box.size() * glm::vec3(brick::finestCells(top, bricks.maxLevel));
+    const brick::BrickSample at = brick::locate(top, bricks, volume.indirection, cell_coord);
+    const size_t first_probe = size_t(at.brick) * brick::kBrickProbeCount;
+    const AxisTaps tx = axisTaps(at.local.x, brick::kBrickSize);
+    const AxisTaps ty = axisTaps(at.local.y, brick::kBrickSize);
+    const AxisTaps tz = axisTaps(at.local.z, brick::kBrickSize);
+    return interpolateTexels(volume, tx, ty, tz, [first_probe](uint32_t x, uint32_t y, uint32_t z) {
+        return first_probe + x + brick::kBrickSize * (y + brick::kBrickSize * z);
+    });
+}
+
+} // namespace
+
+sh::ShRgb sampleVolumeSh(const Volume& volume, glm::vec3 world_position) {
+    if (volume.desc.layout == VolumeLayout::Bricked) {
+        return sampleBrickedSh(volume, world_position);
+    }
+    const grid::GridLayout& layout = volume.desc.grid;
+    const glm::vec3 g = layout.worldToGrid(world_position);
+    const glm::uvec3 res = layout.resolution();
+    const AxisTaps tx = axisTaps(g.x, res.x);
+    const AxisTaps ty = axisTaps(g.y, res.y);
+    const AxisTaps tz = axisTaps(g.z, res.z);
+    return interpolateTexels(volume, tx, ty, tz, [&layout](uint32_t x, uint32_t y, uint32_t z) {
+        return layout.linearIndex(glm::uvec3(x, y, z));
+    });
 }
 
 float volumeWeight(const Volume& volume, glm::vec3 world_position) {

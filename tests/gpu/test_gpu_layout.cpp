@@ -57,8 +57,8 @@ glm::vec3 packedGrid(const gpu::PkVolumeGpu& v, glm::vec3 local) {
 
 TEST(GpuLayout, SizesAndOffsetsMatchStd140) {
     // The static_asserts in the headers are the real check; these keep the figures visible.
-    EXPECT_EQ(sizeof(gpu::PkVolumeGpu), 112u);
-    EXPECT_EQ(sizeof(gpu::PkVolumeSetGpu), 64u + 112u * PK_MAX_VOLUMES);
+    EXPECT_EQ(sizeof(gpu::PkVolumeGpu), 128u);
+    EXPECT_EQ(sizeof(gpu::PkVolumeSetGpu), 64u + 128u * PK_MAX_VOLUMES);
     EXPECT_EQ(offsetof(gpu::PkVolumeSetGpu, volumes) % 16, 0u);
     EXPECT_EQ(sizeof(gpu::PkFrameGpu), 112u + 64u * PK_MAX_LIGHTS);
     // A uniform buffer update with vkCmdUpdateBuffer is limited to 65536 bytes.

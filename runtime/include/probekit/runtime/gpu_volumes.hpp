@@ -7,6 +7,12 @@
 // mipmaps makes hardware trilinear filtering at texture coordinate (g + 0.5) / res the clamp +
 // trilinear step of the CPU sampler (runtime/include/probekit/runtime/sampler.hpp).
 //
+// Bricked volumes (formats/.../brick.hpp) are uploaded as an indirection image (R32_UINT, one
+// texel per finest cell: brick index * 4 + level) plus one brick atlas per texel plane: each
+// brick's 4 x 4 x 4 probes in one slot of 4 x 4 x 4 texels, slots laid out by brickAtlasSlots
+// (layout in shaders/probe_volume_layout.h). Hardware trilinear filtering inside a slot is the
+// brick interpolation of the CPU sampler (sampleVolumeSh's bricked steps).
+//
 // The descriptor set (layout: probe_volume_layout.h, bindings PK_BINDING_*) holds one uniform
 // buffer (gpu::PkVolumeSetGpu: frames, boxes, fades, blending order, flags) and the planes of
 // up to PK_MAX_VOLUMES volumes in two states. Applications create their pipeline layouts with
@@ -23,6 +29,9 @@
 //    (outside a render pass, before its commands that sample the set); the data is captured in
 //    the command buffer at record time, so frames in flight keep the values they were
 //    recorded with. No texel is re-uploaded; a moved volume samples its texels in its new frame.
+//  * A primary replacement that changes a bricked volume's layout (or turns a dense volume
+//    into a bricked one or back) reallocates the slot's images and rewrites the descriptor
+//    set, with the same waiting and invalidation as allocating a second state.
 //  * A volume's second state (replaceVolume(..., VolumeState::Secondary)) is mixed with the
 //    first by setStateBlend's factor f on the GPU, a (1 - f) + b f per filtered texel, so
 //    animating f costs no upload. Allocating the second state rewrites the descriptor set: it
@@ -60,19 +69,33 @@ enum class VolumeState : uint8_t {
 // order VolumeSet::irradiance visits.
 std::vector<uint32_t> blendOrder(std::span<const VolumeDesc> descs);
 
+// Brick-atlas slots per axis (A in probe_volume_layout.h) for `brick_count` bricks on a device
+// whose 3D images may be `max_image_dimension_3d` texels per axis: the smallest near-cube with
+// A.x * A.y * A.z >= brick_count, A.x >= A.y >= A.z, and 4 * A <= max_image_dimension_3d per
+// axis (A.x = min(ceil(cbrt(n)), limit), A.y = min(ceil(sqrt(ceil(n / A.x))), limit),
+// A.z = ceil(n / (A.x * A.y)), limit = max_image_dimension_3d / 4). Fails with OutOfRange when
+// brick_count is 0 or the bricks do not fit.
+Result<glm::uvec3> brickAtlasSlots(size_t brick_count, uint32_t max_image_dimension_3d);
+
+// The atlas slot of brick `index`: (index % A.x, (index / A.x) % A.y, index / (A.x * A.y)).
+glm::uvec3 brickAtlasSlot(uint32_t index, glm::uvec3 atlas_slots);
+
 // One volume's uniforms. `blend` in [0, 1] is the factor towards the second state; > 0 sets
-// PK_VOLUME_FLAG_BLEND (the caller guarantees a second state is bound).
-gpu::PkVolumeGpu packVolumeGpu(const VolumeDesc& desc, float blend);
+// PK_VOLUME_FLAG_BLEND (the caller guarantees a second state is bound). `atlas_slots`: for a
+// bricked volume the brickAtlasSlots its atlas was made with; ignored for dense volumes.
+gpu::PkVolumeGpu packVolumeGpu(const VolumeDesc& desc, float blend,
+                               glm::uvec3 atlas_slots = glm::uvec3(0u));
 
 // The whole uniform buffer. Preconditions: 1 <= descs.size() <= kMaxGpuVolumes, blends has one
-// entry per volume.
+// entry per volume, atlas_slots one per volume or (no bricked volumes) none.
 gpu::PkVolumeSetGpu packVolumeSetGpu(std::span<const VolumeDesc> descs,
-                                     std::span<const float> blends, float normal_offset);
+                                     std::span<const float> blends, float normal_offset,
+                                     std::span<const glm::uvec3> atlas_slots = {});
 
 // The texels of the probes [first, first + count) of every plane, in staging order: plane by
 // plane, then z, y, x (x fastest), in the volume's storage format (raw float or half bits).
-// Preconditions: count >= 1 per axis and first + count <= resolution; `out` holds
-// texelBoxBytes(volume, count) bytes.
+// Dense volumes only. Preconditions: count >= 1 per axis and first + count <= resolution; `out`
+// holds texelBoxBytes(volume, count) bytes.
 size_t texelBoxBytes(const Volume& volume, glm::uvec3 count);
 void packTexelBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count, std::span<uint8_t> out);
 
@@ -100,7 +123,8 @@ public:
     bool hasSecondState(size_t index) const;
     float stateBlend(size_t index) const;
     float normalOffset() const;
-    // Bytes of texel data held on the GPU (both states).
+    // Bytes of texel data held on the GPU (both states; for bricked volumes the whole atlas,
+    // unused slots included, plus the u32 indirection).
     size_t texelBytes() const;
     // Texel bytes copied to the GPU since creation (initial uploads included): moving a volume
     // or changing a blend factor leaves it unchanged.
@@ -110,15 +134,21 @@ public:
     VkDescriptorSet descriptorSet() const;
 
     // Replaces a state's texels (and, for the primary state, validity and desc: bounds, frame,
-    // fade, priority, name) with `volume`'s. The layout must match the slot's: resolution,
-    // position mode, SH order and storage (the images are reused); a secondary state must
-    // also have the primary's bounds. Fails with InvalidArgument naming the mismatch.
+    // fade, priority, name) with `volume`'s. SH order and storage must match the slot's. A
+    // dense slot replaced by a dense volume keeps its images: resolution and position mode
+    // must match. A primary replacement where the slot or `volume` is bricked may change the
+    // layout (top bricks, brick list, dense <-> bricked): the images are reallocated when their
+    // shapes change, unless the slot has a second state (then the layout must stay). A
+    // secondary state must have the primary's bounds and layout (for bricked volumes the same
+    // top bricks and brick list). Fails with InvalidArgument naming the mismatch.
     Result<void> replaceVolume(size_t index, const Volume& volume,
                                VolumeState state = VolumeState::Primary);
 
     // Copies the texels of probes [first, first + count) from `source` (same layout as the
     // slot) into a state, and nothing else; for the primary state the validity of the box too.
-    // Fails with OutOfRange when the box is empty or leaves the grid.
+    // Dense volumes only. Fails with OutOfRange when the box is empty or leaves the grid, and
+    // with InvalidArgument for a bricked slot or source (a box of probes means nothing in the
+    // atlas: replace the whole volume).
     Result<void> updateBox(size_t index, const Volume& source, glm::uvec3 first, glm::uvec3 count,
                            VolumeState state = VolumeState::Primary);
 

@@ -3,7 +3,7 @@
 // shaders/probe_volume.glsl's pk_irradiance mirrors VolumeSet::irradiance term for term; the GPU
 // tests (tests/gpu/) compare against this code. It needs no Vulkan and no baker.
 //
-// Sampling one volume at world position p:
+// Sampling one dense volume at world position p:
 //   1. g = volume.grid.worldToGrid(p) (continuous grid coordinates, probe i at i).
 //   2. Clamp addressing: g = clamp(g, 0, res - 1) per axis. This is what a 3D texture with
 //      linear filtering and clamp-to-edge addressing does at texture coordinate (g + 0.5) / res.
@@ -12,6 +12,22 @@
 //      uses it alone), weights fract(g).
 //   4. Unpack to SH (volume.hpp's packing) and evaluate sh::irradiance with the world normal
 //      (coefficients are stored in the world frame, whatever the volume's own frame).
+//
+// Sampling one bricked volume (formats/.../brick.hpp) at world position p; pk_brick_uvw in
+// shaders/probe_volume.glsl mirrors B1-B3, hardware trilinear filtering inside the brick's atlas
+// slot (runtime/.../gpu_volumes.hpp) B4:
+//   B1. local = frame.toLocal(p); f = (local - box.min) / box.size() * N, the point in
+//       finest-cell units (N = brick::finestCells(grid.resolution(), maxLevel)).
+//   B2. brick::locate(f): clamp f to [0, N] (NaN -> 0), finest cell c = min(floor(f), N - 1),
+//       brick b = indirection[c], span s = 2^(maxLevel - level of b), origin = (c / s) * s,
+//       brick-local coordinates l = clamp((f - origin) * (3 / s), 0, 3).
+//   B3. Trilinear interpolation, as step 3, of the stored texels of brick b's 4 x 4 x 4 probes
+//       (volume probe b * 64 + x + 4 (y + 4 z)) at l: probes floor(l) and floor(l) + 1
+//       (an axis at l = 3 uses probe 3 alone), weights fract(l).
+//   B4. Unpack and evaluate as step 4.
+// Outside the box this clamps to the nearest border brick's values, as step 2 does for dense
+// volumes. Fades, blending and the nearest-volume rule below use the box alone, whatever the
+// layout.
 //
 // Blending overlapping volumes at p:
 //   * A volume's weight w(p) is 1 deeper than fadeDistance inside its box, falls linearly to 0
