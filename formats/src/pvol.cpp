@@ -41,6 +41,10 @@ constexpr uint8_t kLittleEndianFlag = 1;
 // fade distance, validity count, texel count. Bounds the volume count by the bytes that remain.
 constexpr size_t kMinVolumeBytes =
     1 + 8 + 6 * 4 + 3 * 4 + 1 + 4 * 4 + 3 * 4 + 1 + 1 + 4 + 4 + 8 + 8;
+// A bricked volume adds its max level and brick count, then this much per brick: level and
+// coord. Bounds the brick count by the bytes that remain.
+constexpr size_t kBrickedExtraBytes = 1 + 8;
+constexpr size_t kBrickBytes = 1 + 3 * 4;
 
 void storeLe32(uint8_t* p, uint32_t v) {
     if constexpr (std::endian::native == std::endian::big) {
@@ -233,7 +237,7 @@ private:
 //   f64     metadata.bakeSeconds
 //   u64     volume count
 //   per volume:
-//     u8      layout (VolumeLayout; 0 = Dense)
+//     u8      layout (VolumeLayout: 0 dense, 1 bricked)
 //     string  name
 //     f32 x3  bounds.min (x, y, z)        f32 x3  bounds.max
 //     u32 x3  resolution (x, y, z)
@@ -243,12 +247,18 @@ private:
 //     u8      storage (Storage: 0 float, 1 half)
 //     i32     blend priority
 //     f32     fade distance (metres)
-//     u64     validity byte count (== probe count), then the validity bytes
+//     bricked only (brick.hpp; position mode must be 0 = center):
+//       u8      max level (0..3)
+//       u64     brick count B
+//       per brick: u8 level, u32 x3 coord (x, y, z) at that level
+//     u64     validity byte count (== probe count: grid probes, or 64 * B), then the bytes
 //     u64     texel component count (== planes * probes * 4), then the components as f32 or
 //             as binary16 bit patterns (u16), plane-major as volume.hpp describes
 //
-// Counts are stored even though the resolution implies them so that a reader can check the two
-// against each other; blocks go through binary_data so that loading them is one bulk copy.
+// Counts are stored even though the resolution (or brick count) implies them so that a reader
+// can check the two against each other; the indirection is not stored (the reader derives it
+// from the bricks, brick::buildIndirection); blocks go through binary_data so that loading
+// them is one bulk copy.
 // ---------------------------------------------------------------------------------------------
 
 void saveString(cereal::PortableBinaryOutputArchive& archive, const std::string& text) {
@@ -267,7 +277,7 @@ void serialize(cereal::PortableBinaryOutputArchive& archive, const PvolFile& fil
     for (const Volume& volume : file.volumes) {
         const VolumeDesc& desc = volume.desc;
         const grid::GridLayout& layout = desc.grid;
-        archive(uint8_t(VolumeLayout::Dense));
+        archive(uint8_t(desc.layout));
         saveString(archive, desc.name);
         const grid::Aabb& bounds = layout.bounds();
         archive(bounds.min.x, bounds.min.y, bounds.min.z, bounds.max.x, bounds.max.y, bounds.max.z);
@@ -279,6 +289,12 @@ void serialize(cereal::PortableBinaryOutputArchive& archive, const PvolFile& fil
         archive(frame.translation.x, frame.translation.y, frame.translation.z);
         archive(uint8_t(desc.shOrder), uint8_t(desc.storage));
         archive(int32_t(desc.blendPriority), desc.fadeDistance);
+        if (desc.layout == VolumeLayout::Bricked) {
+            archive(uint8_t(desc.bricks.maxLevel), uint64_t(desc.bricks.bricks.size()));
+            for (const brick::Brick& b : desc.bricks.bricks) {
+                archive(b.level, uint32_t(b.coord.x), uint32_t(b.coord.y), uint32_t(b.coord.z));
+            }
+        }
 
         archive(uint64_t(volume.validity.size()));
         archive(cereal::binary_data(volume.validity.data(), volume.validity.size()));
@@ -367,18 +383,15 @@ private:
 
     Volume readVolume(std::string& context) {
         const uint8_t layout = readValue<uint8_t>();
-        if (layout == uint8_t(VolumeLayout::Bricked)) {
+        if (layout != uint8_t(VolumeLayout::Dense) && layout != uint8_t(VolumeLayout::Bricked)) {
             fail(ErrorCode::BadEnum, context,
-                 "layout 1 (bricked) is reserved for adaptive volumes and not supported by this "
-                 "build (it reads layout 0, dense)");
-        }
-        if (layout != uint8_t(VolumeLayout::Dense)) {
-            fail(ErrorCode::BadEnum, context,
-                 "layout " + std::to_string(layout) + " is not a known layout (0 = dense)");
+                 "layout " + std::to_string(layout) +
+                     " is not a known layout (0 = dense, 1 = bricked)");
         }
 
         Volume volume;
         VolumeDesc& desc = volume.desc;
+        desc.layout = VolumeLayout(layout);
         desc.name = readString(context, "name");
         context += " ('" + desc.name + "')";
 
@@ -399,6 +412,12 @@ private:
             mode != uint8_t(grid::PositionMode::Corner)) {
             fail(ErrorCode::BadEnum, context,
                  "position_mode " + std::to_string(mode) + " is not 0 (center) or 1 (corner)");
+        }
+        // Checked before the grid: corner placement would fail there on a 1-brick axis.
+        if (desc.layout == VolumeLayout::Bricked && mode != uint8_t(grid::PositionMode::Center)) {
+            fail(ErrorCode::BadEnum, context,
+                 "position_mode " + std::to_string(mode) +
+                     " of a bricked volume must be 0 (center)");
         }
         if (order != uint8_t(sh::Order::L1) && order != uint8_t(sh::Order::L2)) {
             fail(ErrorCode::BadEnum, context,
@@ -440,14 +459,19 @@ private:
             fail(layout_result.error().code, context, layout_result.error().message);
         }
         desc.grid = layout_result.value();
+        if (desc.layout == VolumeLayout::Bricked) {
+            readBricks(volume, context);
+        }
 
-        const size_t probe_count = desc.grid.probeCount();
+        const size_t probe_count = desc.probeCount();
         const uint64_t validity_count = readValue<uint64_t>();
         if (validity_count != probe_count) {
             fail(ErrorCode::InconsistentSize, context,
                  "validity holds " + std::to_string(validity_count) + " bytes but the " +
-                     resolutionText(resolution) + " grid has " + std::to_string(probe_count) +
-                     " probes");
+                     (desc.layout == VolumeLayout::Dense
+                          ? resolutionText(resolution) + " grid has "
+                          : std::to_string(desc.bricks.bricks.size()) + " bricks hold ") +
+                     std::to_string(probe_count) + " probes");
         }
         requireBytes(validity_count, 1, context, "validity byte count");
         volume.validity.resize(probe_count);
@@ -489,6 +513,36 @@ private:
         return volume;
     }
 
+    // The bricked part of a volume (after its common fields): max level, brick list, then the
+    // indirection, whose construction is the tiling check.
+    void readBricks(Volume& volume, const std::string& context) {
+        VolumeDesc& desc = volume.desc;
+        desc.bricks.maxLevel = readValue<uint8_t>();
+        const uint64_t brick_count = readValue<uint64_t>();
+        requireBytes(brick_count, kBrickBytes, context, "brick count");
+        desc.bricks.bricks.resize(size_t(brick_count));
+        for (brick::Brick& b : desc.bricks.bricks) {
+            m_archive(b.level, b.coord.x, b.coord.y, b.coord.z);
+        }
+        // The indirection takes up to 2 KiB per brick (8^3 finest cells of u32). Building it
+        // only once there is a brick per level-0 region and the bricks' probe data is known to
+        // be in the file keeps a forged brick list from allocating more than the file holds.
+        const glm::uvec3 top = desc.grid.resolution();
+        if (brick_count < uint64_t(top.x) * top.y * top.z) {
+            fail(ErrorCode::InconsistentSize, context,
+                 std::to_string(brick_count) + " bricks cannot tile the " + resolutionText(top) +
+                     " level-0 grid (every level-0 region needs a brick)");
+        }
+        requireBytes(brick_count * brick::kBrickProbeCount,
+                     1 + size_t(planeCount(desc.shOrder)) * 4 * bytesPerComponent(desc.storage),
+                     context, "probe count of the bricks");
+        auto built = brick::buildIndirection(desc.grid.resolution(), desc.bricks, context);
+        if (!built) {
+            throw DecodeFailure{built.error()}; // already labelled with `context`
+        }
+        volume.indirection = std::move(built).value();
+    }
+
     static std::string resolutionText(glm::uvec3 resolution) {
         return std::to_string(resolution.x) + "x" + std::to_string(resolution.y) + "x" +
                std::to_string(resolution.z);
@@ -507,6 +561,9 @@ size_t estimatePayloadBytes(const PvolFile& file) {
     for (const Volume& volume : file.volumes) {
         bytes += kMinVolumeBytes + volume.desc.name.size() + volume.validity.size() +
                  volume.texelBytes();
+        if (volume.desc.layout == VolumeLayout::Bricked) {
+            bytes += kBrickedExtraBytes + kBrickBytes * volume.desc.bricks.bricks.size();
+        }
     }
     return bytes;
 }

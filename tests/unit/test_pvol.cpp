@@ -93,6 +93,9 @@ struct VolumeOffsets {
     size_t storage = 0;
     size_t priority = 0;
     size_t fadeDistance = 0;
+    size_t maxLevel = 0;   // bricked only
+    size_t brickCount = 0; // bricked only
+    size_t bricks = 0;     // bricked only: 13 bytes per brick (u8 level, u32 x3 coord)
     size_t validityCount = 0;
     size_t validity = 0;
     size_t texelCount = 0;
@@ -118,12 +121,20 @@ VolumeOffsets locateVolume(const std::vector<uint8_t>& bytes, const Volume& volu
     at.priority = at.storage + 1;
     at.fadeDistance = at.priority + 4;
     at.validityCount = at.fadeDistance + 4;
+    if (volume.desc.layout == VolumeLayout::Bricked) {
+        at.maxLevel = at.fadeDistance + 4;
+        at.brickCount = at.maxLevel + 1;
+        at.bricks = at.brickCount + 8;
+        at.validityCount = at.bricks + 13 * volume.desc.bricks.bricks.size();
+        EXPECT_EQ(bytes[at.maxLevel], volume.desc.bricks.maxLevel);
+        EXPECT_EQ(loadAt<uint64_t>(bytes, at.brickCount), volume.desc.bricks.bricks.size());
+    }
     at.validity = at.validityCount + 8;
     at.texelCount = at.validity + volume.probeCount();
     at.texels = at.texelCount + 8;
 
     EXPECT_EQ(loadAt<uint64_t>(bytes, at.nameLength), volume.desc.name.size());
-    EXPECT_EQ(bytes[at.layout], uint8_t(VolumeLayout::Dense));
+    EXPECT_EQ(bytes[at.layout], uint8_t(volume.desc.layout));
     EXPECT_EQ(loadAt<uint32_t>(bytes, at.resolution + 4), volume.desc.grid.resolution().y);
     EXPECT_EQ(bytes[at.shOrder], uint8_t(volume.desc.shOrder));
     EXPECT_EQ(loadAt<float>(bytes, at.fadeDistance), volume.desc.fadeDistance);
@@ -161,8 +172,10 @@ sh::ShRgb testProbe(uint32_t volume_seed, size_t probe, Order order) {
 
 struct VolumeSpec {
     std::string name;
-    glm::uvec3 resolution{1u};
+    glm::uvec3 resolution{1u}; // bricked: level-0 bricks
     PositionMode mode = PositionMode::Center;
+    VolumeLayout layout = VolumeLayout::Dense;
+    brick::BrickLayout bricks; // bricked only
     Order order = Order::L2;
     Storage storage = Storage::Float32;
     grid::RigidFrame frame;
@@ -182,13 +195,15 @@ TestVolume buildVolume(const VolumeSpec& spec) {
     desc.grid =
         grid::GridLayout(grid::Aabb{glm::vec3(-4.0f, 0.0f, -2.5f), glm::vec3(4.0f, 3.0f, 6.0f)},
                          spec.resolution, spec.mode, spec.frame);
+    desc.layout = spec.layout;
+    desc.bricks = spec.bricks;
     desc.shOrder = spec.order;
     desc.storage = spec.storage;
     desc.blendPriority = spec.priority;
     desc.fadeDistance = spec.fade;
 
     TestVolume out;
-    const size_t probe_count = desc.grid.probeCount();
+    const size_t probe_count = desc.probeCount();
     std::vector<uint8_t> validity(probe_count, kProbeValid);
     for (size_t i = 0; i < probe_count; ++i) {
         out.probes.push_back(testProbe(spec.seed, i, spec.order));
@@ -266,6 +281,68 @@ Result<PvolFile> decode(const std::vector<uint8_t>& bytes) {
 // Prefix every volume-1 message carries.
 std::string targetLabel() {
     return std::string(kSource) + ": volume 1 ('" + kTargetName + "'): ";
+}
+
+// --- bricked volumes ---------------------------------------------------------------------------
+
+// Top bricks 2 x 1 x 1, max level 2 (finest cells 8 x 4 x 4): top (0,0,0) is one level-0 brick;
+// top (1,0,0) splits into level-1 bricks, of which (2,0,0) splits again into level-2 bricks
+// (so a level-2 brick borders the level-0 one). Listed out of level order (any order is valid):
+//   0: level 0 (0,0,0)   1: level 2 (4,0,0)   2: level 2 (5,0,0)   3: level 1 (3,0,0)
+//   4: level 2 (4,1,0)   5: level 1 (2,1,0)   ...   15: level 1 (3,1,1)
+constexpr glm::uvec3 kBrickedTop{2, 1, 1};
+
+brick::BrickLayout mixedBricks() {
+    brick::BrickLayout layout;
+    layout.maxLevel = 2;
+    layout.bricks.push_back({glm::uvec3(0, 0, 0), 0});
+    for (uint32_t z = 0; z < 2; ++z) {
+        for (uint32_t y = 0; y < 2; ++y) {
+            for (uint32_t x = 0; x < 2; ++x) {
+                layout.bricks.push_back({glm::uvec3(4 + x, y, z), 2});
+                if (glm::uvec3(x, y, z) != glm::uvec3(0, 0, 0)) {
+                    layout.bricks.push_back({glm::uvec3(2 + x, y, z), 1});
+                }
+            }
+        }
+    }
+    return layout;
+}
+
+VolumeSpec brickedSpec(const std::string& name, Order order, Storage storage, uint32_t seed) {
+    return {.name = name,
+            .resolution = kBrickedTop,
+            .layout = VolumeLayout::Bricked,
+            .bricks = mixedBricks(),
+            .order = order,
+            .storage = storage,
+            .seed = seed};
+}
+
+// Like sampleFile(), but volume 1 is bricked (mixedBricks(), L1, half).
+constexpr const char* kBrickedName = "vault_SENTINEL_b21c";
+
+SampleFile brickedSampleFile() {
+    SampleFile sample;
+    sample.file.metadata = testMetadata();
+    sample.file.volumes.push_back(sampleFile().file.volumes[0]);
+    VolumeSpec spec = brickedSpec(kBrickedName, Order::L1, Storage::Float16, 3);
+    spec.frame = tiltedFrame();
+    spec.priority = 2;
+    spec.fade = 0.25f;
+    sample.file.volumes.push_back(buildVolume(spec).volume);
+    sample.bytes = encodePvol(sample.file);
+    sample.target = locateVolume(sample.bytes, sample.file.volumes[1]);
+    return sample;
+}
+
+std::string brickedLabel() {
+    return std::string(kSource) + ": volume 1 ('" + kBrickedName + "'): ";
+}
+
+// Offset of field `field` (0 level, 1..3 coord x, y, z) of brick `index` from the brick list.
+size_t brickField(size_t index, int field) {
+    return 13 * index + (field == 0 ? 0 : 1 + 4 * size_t(field - 1));
 }
 
 // --- per-test temporary directory ---------------------------------------------------------------
@@ -365,6 +442,8 @@ void expectSameDesc(const VolumeDesc& got, const VolumeDesc& want) {
     EXPECT_EQ(got.storage, want.storage);
     EXPECT_EQ(got.blendPriority, want.blendPriority);
     EXPECT_EQ(got.fadeDistance, want.fadeDistance);
+    EXPECT_EQ(got.layout, want.layout);
+    EXPECT_EQ(got.bricks, want.bricks);
 }
 
 TEST_P(PvolRoundTrip, SeveralVolumesSurviveWriteAndRead) {
@@ -459,6 +538,84 @@ INSTANTIATE_TEST_SUITE_P(Pvol, PvolRoundTrip,
                                                               PositionMode::Center),
                                             ::testing::Values(Order::L1, Order::L2)),
                          roundTripName);
+
+// Everything a bricked volume carries comes back: desc with its bricks, the derived
+// indirection, validity and texels bit for bit; re-encoding gives the same bytes.
+void expectSameVolume(const Volume& have, const Volume& want) {
+    SCOPED_TRACE("volume " + want.desc.name);
+    expectSameDesc(have.desc, want.desc);
+    EXPECT_EQ(have.indirection, want.indirection);
+    EXPECT_EQ(have.validity, want.validity);
+    EXPECT_TRUE(sameBytes(have.texelsF32, want.texelsF32));
+    EXPECT_TRUE(sameBytes(have.texelsF16, want.texelsF16));
+    EXPECT_TRUE(validateVolume(have).ok());
+}
+
+using BrickedRoundTripParams = std::tuple<Storage, Order>;
+
+class PvolBrickedRoundTrip : public PvolFileTest,
+                             public ::testing::WithParamInterface<BrickedRoundTripParams> {};
+
+TEST_P(PvolBrickedRoundTrip, MixedLevelsSurviveWriteAndRead) {
+    const auto [storage, order] = GetParam();
+    PvolFile file;
+    file.metadata = testMetadata();
+    VolumeSpec mixed = brickedSpec("mixed", order, storage, 21);
+    mixed.frame = tiltedFrame();
+    mixed.priority = -1;
+    mixed.fade = 0.75f;
+    file.volumes.push_back(buildVolume(mixed).volume);
+    // A second bricked volume with every brick coarser than its max level: level-0 bricks
+    // only, max level 1, so each brick covers 2 x 2 x 2 indirection entries.
+    VolumeSpec coarse = brickedSpec("coarse", order, storage, 22);
+    coarse.resolution = {1, 2, 4};
+    coarse.bricks = {1, brick::uniformLayout({1, 2, 4}, 0).bricks};
+    file.volumes.push_back(buildVolume(coarse).volume);
+    ASSERT_EQ(file.volumes[0].probeCount(), 16u * 64u);
+    ASSERT_EQ(file.volumes[0].indirection.size(), 8u * 4u * 4u);
+    ASSERT_EQ(file.volumes[1].indirection.size(), 2u * 4u * 8u);
+
+    const std::filesystem::path path = m_dir / "bricked.pvol";
+    ASSERT_TRUE(writePvol(path, file).ok());
+    const std::vector<uint8_t> bytes = encodePvol(file);
+    EXPECT_EQ(readAllBytes(path), bytes);
+    locateVolume(bytes, file.volumes[0]); // checks the documented field positions
+
+    auto read = readPvol(path);
+    ASSERT_TRUE(read.ok()) << read.error().message;
+    ASSERT_EQ(read.value().volumes.size(), 2u);
+    for (size_t v = 0; v < 2; ++v) {
+        expectSameVolume(read.value().volumes[v], file.volumes[v]);
+    }
+    EXPECT_EQ(encodePvol(read.value()), bytes) << "re-encoding changed the bytes";
+}
+
+std::string brickedRoundTripName(const ::testing::TestParamInfo<BrickedRoundTripParams>& info) {
+    const auto [storage, order] = info.param;
+    return std::string(toString(storage)) + (order == Order::L1 ? "_L1" : "_L2");
+}
+
+INSTANTIATE_TEST_SUITE_P(Pvol, PvolBrickedRoundTrip,
+                         ::testing::Combine(::testing::Values(Storage::Float32, Storage::Float16),
+                                            ::testing::Values(Order::L1, Order::L2)),
+                         brickedRoundTripName);
+
+TEST(PvolEncode, DenseAndBrickedVolumesInOneFile) {
+    const SampleFile sample = brickedSampleFile();
+    EXPECT_EQ(sample.bytes[sample.target.layout], uint8_t(VolumeLayout::Bricked));
+    const VolumeOffsets dense = locateVolume(sample.bytes, sample.file.volumes[0]);
+    EXPECT_EQ(sample.bytes[dense.layout], uint8_t(VolumeLayout::Dense));
+
+    auto got = decode(sample.bytes);
+    ASSERT_TRUE(got.ok()) << got.error().message;
+    ASSERT_EQ(got.value().volumes.size(), 2u);
+    EXPECT_EQ(got.value().volumes[0].desc.layout, VolumeLayout::Dense);
+    EXPECT_TRUE(got.value().volumes[0].indirection.empty());
+    for (size_t v = 0; v < 2; ++v) {
+        expectSameVolume(got.value().volumes[v], sample.file.volumes[v]);
+    }
+    EXPECT_EQ(encodePvol(got.value()), sample.bytes);
+}
 
 TEST(PvolEncode, EmptyFileRoundTrips) {
     PvolFile file;
@@ -718,13 +875,105 @@ TEST_F(PvolReject, OutOfRangeFields) {
                    targetLabel() + "validity byte 2 is not 0 or 1");
 }
 
-TEST_F(PvolReject, ReservedBrickedLayout) {
+TEST_F(PvolReject, UnknownLayout) {
     SampleFile sample = sampleFile();
-    sample.bytes[sample.target.layout] = uint8_t(VolumeLayout::Bricked);
+    sample.bytes[sample.target.layout] = 2; // 0 dense and 1 bricked are the known layouts
     resealPayload(sample.bytes);
-    expectRejected(sample.bytes, ErrorCode::BadEnum, std::string(kSource) + ": volume 1: layout 1");
-    expectRejected(sample.bytes, ErrorCode::BadEnum, "reserved");
-    expectRejected(sample.bytes, ErrorCode::BadEnum, "not supported by this build");
+    expectRejected(sample.bytes, ErrorCode::BadEnum,
+                   std::string(kSource) + ": volume 1: layout 2 is not a known layout");
+}
+
+// --- rejection: bricked volumes -----------------------------------------------------------------
+
+// Edits one byte of the bricked sample's volume 1, reseals, and expects the rejection.
+class PvolRejectBricked : public PvolReject {
+protected:
+    template <class T>
+    void expectFieldRejected(size_t VolumeOffsets::*field, size_t extra, T value, ErrorCode code,
+                             const std::string& fragment) {
+        SampleFile sample = brickedSampleFile();
+        storeAt<T>(sample.bytes, sample.target.*field + extra, value);
+        resealPayload(sample.bytes);
+        expectRejected(sample.bytes, code, brickedLabel() + fragment);
+    }
+};
+
+TEST_F(PvolRejectBricked, MaxLevelAboveThree) {
+    expectFieldRejected<uint8_t>(&VolumeOffsets::maxLevel, 0, 4, ErrorCode::OutOfRange,
+                                 "max_level 4 exceeds 3");
+}
+
+TEST_F(PvolRejectBricked, AbsurdBrickCount) {
+    // 2^62 bricks would be 2^66 bytes of brick list: Truncated (not an allocation failure,
+    // which would surface as InvalidArgument) shows the count is checked before the resize.
+    expectFieldRejected<uint64_t>(&VolumeOffsets::brickCount, 0, uint64_t(1) << 62,
+                                  ErrorCode::Truncated,
+                                  "brick count 4611686018427387904 (13 bytes each) needs more");
+    // 2^20 bricks (a 16 MiB list) would allocate fine, but the file does not hold them.
+    expectFieldRejected<uint64_t>(&VolumeOffsets::brickCount, 0, uint64_t(1) << 20,
+                                  ErrorCode::Truncated, "brick count 1048576 (13 bytes each)");
+}
+
+TEST_F(PvolRejectBricked, FewerBricksThanLevel0Regions) {
+    // One brick (then the rest of the list read as validity count) for a 2 x 1 x 1 top grid.
+    expectFieldRejected<uint64_t>(&VolumeOffsets::brickCount, 0, 1, ErrorCode::InconsistentSize,
+                                  "1 bricks cannot tile the 2x1x1 level-0 grid");
+}
+
+TEST_F(PvolRejectBricked, BrickLevelAboveMaxLevel) {
+    expectFieldRejected<uint8_t>(&VolumeOffsets::bricks, brickField(3, 0), 3, ErrorCode::OutOfRange,
+                                 "brick 3 (level 3, coord 3,0,0): level exceeds max_level 2");
+}
+
+TEST_F(PvolRejectBricked, CoordOutOfRange) {
+    expectFieldRejected<uint32_t>(
+        &VolumeOffsets::bricks, brickField(0, 2), 1, ErrorCode::OutOfRange,
+        "brick 0 (level 0, coord 0,1,0): coord outside the level's 2x1x1 grid");
+}
+
+TEST_F(PvolRejectBricked, Overlap) {
+    // Brick 3 (level 1, (3,0,0)) moved onto brick 7 (level 1, (3,1,0)).
+    expectFieldRejected<uint32_t>(&VolumeOffsets::bricks, brickField(3, 2), 1,
+                                  ErrorCode::InconsistentSize,
+                                  "brick 7 (level 1, coord 3,1,0) overlaps brick 3");
+}
+
+TEST_F(PvolRejectBricked, Gap) {
+    // Brick 0 shrinks from level 0 to level 1: it covers 2^3 of its region's 4^3 finest cells.
+    expectFieldRejected<uint8_t>(&VolumeOffsets::bricks, brickField(0, 0), 1,
+                                 ErrorCode::InconsistentSize,
+                                 "finest cell 2,0,0 is covered by no brick");
+}
+
+TEST_F(PvolRejectBricked, PositionModeNotCenter) {
+    expectFieldRejected<uint8_t>(&VolumeOffsets::positionMode, 0, uint8_t(PositionMode::Corner),
+                                 ErrorCode::BadEnum,
+                                 "position_mode 1 of a bricked volume must be 0 (center)");
+}
+
+TEST_F(PvolRejectBricked, ValidityCountIsNotBricksTimes64) {
+    expectFieldRejected<uint64_t>(&VolumeOffsets::validityCount, 0, 16 * 64 - 1,
+                                  ErrorCode::InconsistentSize,
+                                  "validity holds 1023 bytes but the 16 bricks hold 1024 probes");
+}
+
+TEST_F(PvolRejectBricked, TexelCountMismatch) {
+    // L2's count where the volume is L1: 7 planes instead of 3, times 1024 probes, times 4.
+    expectFieldRejected<uint64_t>(&VolumeOffsets::texelCount, 0, 7 * 1024 * 4,
+                                  ErrorCode::InconsistentSize,
+                                  "texel data holds 28672 values, expected 12288");
+}
+
+TEST_F(PvolRejectBricked, TruncatedBrickListAtEveryCutPoint) {
+    // Cuts through the bricked fields and the start of the probe data, with a valid checksum:
+    // every one is Truncated (the brick list, or the probe data the list promises, runs out).
+    const SampleFile sample = brickedSampleFile();
+    for (size_t cut = sample.target.maxLevel; cut < sample.target.validity + 8; ++cut) {
+        SCOPED_TRACE("cut at " + std::to_string(cut));
+        std::vector<uint8_t> head(sample.bytes.begin(), sample.bytes.begin() + cut);
+        resealPayload(head);
+        expectRejected(head, ErrorCode::Truncated, "");
+    }
 }
 
 TEST_F(PvolReject, UnknownEnumValues) {

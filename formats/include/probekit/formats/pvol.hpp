@@ -10,8 +10,9 @@
 // Nothing may follow the payload.
 //
 // The payload holds the bake metadata, then a volume count, then per volume: a layout enum
-// (VolumeLayout; only Dense exists yet, Bricked is reserved for adaptive volumes), the
-// VolumeDesc fields, validity bytes and texel planes (volume.hpp documents their packing).
+// (VolumeLayout: 0 dense, 1 bricked), the VolumeDesc fields, for bricked volumes the max level
+// and the brick list (brick.hpp; the indirection is derived on reading, not stored), then
+// validity bytes and texel planes (volume.hpp documents their packing).
 //
 // Reading never trusts the bytes: every count is checked against the bytes that remain
 // before anything is allocated, every enum against its known values, every float field for
