@@ -2,15 +2,18 @@
 // interpolation, clamp addressing, frames, position modes, and blending of overlapping volumes.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <span>
 #include <string>
 #include <vector>
 
 #include <glm/gtc/quaternion.hpp>
 #include <gtest/gtest.h>
 
+#include "../gpu/bricked_test_volume.hpp"
 #include "probekit/formats/pvol.hpp"
 #include "probekit/runtime/sampler.hpp"
 
@@ -43,6 +46,13 @@ constexpr float kHalfRelative = 1.0f / 2048.0f;
 // kY00 = 0.282095 is 1 / (2 sqrt(pi)) to 6 decimals (relative error ~7e-7), so a constant
 // radiance comes back as pi L to about 1e-6 relative.
 constexpr float kFurnaceRelative = 1e-5f;
+// Along a line crossing a brick or level border, two samples 2 * kBorderStep apart differ by the
+// field's change over that step (a coefficient's slope along an axis is <= ~2.6 per metre here,
+// so <= ~5e-4) plus rounding of values of magnitude ~10 (a few 1e-6): a seam, i.e. bricks
+// disagreeing at their shared face, would show as a jump of the size of the field's variation
+// across a brick (~0.1 and more).
+constexpr float kBorderStep = 1e-4f;
+constexpr float kBorderJump = 1e-3f;
 // Depths like 4 - 3.9f carry the rounding of a decimal position (~2e-7 m), divided by a fade
 // distance of 0.5 m.
 constexpr float kWeightTolerance = 1e-6f;
@@ -581,4 +591,130 @@ TEST(VolumeSetLoad, ErrorsPassThroughTheFileMessage) {
             << set.error().message;
     }
     std::filesystem::remove(garbage);
+}
+
+// ---- Bricked volumes (steps B1-B4 of sampler.hpp) ----
+
+namespace {
+
+VolumeDesc brickedDesc(const brick::BrickLayout& layout, glm::uvec3 top,
+                       const grid::RigidFrame& frame, Storage storage) {
+    VolumeDesc desc;
+    desc.name = "bricked";
+    desc.grid = grid::GridLayout({glm::vec3(-1.0f, 0.5f, -3.0f), glm::vec3(2.0f, 2.0f, 1.0f)}, top,
+                                 grid::PositionMode::Center, frame);
+    desc.layout = VolumeLayout::Bricked;
+    desc.bricks = layout;
+    desc.storage = storage;
+    return desc;
+}
+
+const grid::RigidFrame kRotated{glm::angleAxis(0.7f, glm::normalize(glm::vec3(1, 2, 3))),
+                                glm::vec3(5.0f, -1.0f, 2.0f)};
+
+// An irrational-fraction point of the box (no weight exactly 0 or 1), world frame.
+glm::vec3 boxPoint(const VolumeDesc& desc, int k) {
+    const glm::vec3 t(std::fmod(0.1f + 0.618034f * float(k), 1.0f),
+                      std::fmod(0.3f + 0.414214f * float(k), 1.0f),
+                      std::fmod(0.7f + 0.732051f * float(k), 1.0f));
+    const grid::Aabb& box = desc.grid.bounds();
+    return desc.grid.frame().toWorld(box.min + t * box.size());
+}
+
+} // namespace
+
+TEST(SamplerBricked, EqualsBrickInterpolateOfTheStoredSh) {
+    // Interpolating texels then unpacking equals unpacking then interpolating SH (both linear),
+    // so sampleVolumeSh must equal brick::locate + brick::interpolate over Volume::probe.
+    const glm::uvec3 top(2, 1, 2);
+    for (Storage storage : {Storage::Float32, Storage::Float16}) {
+        const VolumeDesc desc = brickedDesc(bricktest::mixedLayout(top), top, kRotated, storage);
+        // Unstitched distinct values: any wrong brick, probe or weight shows.
+        size_t counter = 0;
+        const Volume v = bricktest::makeBrickedVolume(
+            desc,
+            [&counter](glm::vec3) {
+                ++counter;
+                return distinctSh(glm::uvec3(counter % 97, counter / 97, counter % 5));
+            },
+            false);
+        std::vector<sh::ShRgb> probes(v.probeCount());
+        for (size_t i = 0; i < probes.size(); ++i) {
+            probes[i] = v.probe(i);
+        }
+        const glm::uvec3 cells = brick::finestCells(top, desc.bricks.maxLevel);
+        for (int k = 0; k < 400; ++k) {
+            const glm::vec3 world = boxPoint(desc, k);
+            const grid::Aabb& box = desc.grid.bounds();
+            const glm::vec3 f =
+                (desc.grid.frame().toLocal(world) - box.min) / box.size() * glm::vec3(cells);
+            const brick::BrickSample at = brick::locate(top, desc.bricks, v.indirection, f);
+            const sh::ShRgb expected =
+                brick::interpolate(std::span(probes).subspan(size_t(at.brick) * 64, 64), at.local);
+            expectShNear(runtime::sampleVolumeSh(v, world), expected, kInterpolationRelative * 4,
+                         std::string(toString(storage)) + " point " + std::to_string(k));
+        }
+    }
+}
+
+TEST(SamplerBricked, UniformLevel0OfALinearFieldIsTheField) {
+    // Probes sit on the box faces, so the whole box (faces included) reproduces an affine field;
+    // outside, the value clamps to the nearest face's.
+    for (const grid::RigidFrame& frame : {grid::RigidFrame{}, kRotated}) {
+        const glm::uvec3 top(4, 2, 8);
+        const VolumeDesc desc =
+            brickedDesc(brick::uniformLayout(top, 0), top, frame, Storage::Float32);
+        const Volume v = bricktest::makeBrickedVolume(desc, affineField, false);
+        for (int k = 0; k < 200; ++k) {
+            const glm::vec3 world = boxPoint(desc, k);
+            expectShNear(runtime::sampleVolumeSh(v, world), affineField(world), kFrameRelative,
+                         "point " + std::to_string(k));
+        }
+        const grid::Aabb& box = desc.grid.bounds();
+        const glm::vec3 outside = box.max + glm::vec3(0.5f, 0.25f, 1.0f);
+        expectShNear(runtime::sampleVolumeSh(v, frame.toWorld(outside)),
+                     affineField(frame.toWorld(box.max)), kFrameRelative, "outside");
+    }
+}
+
+TEST(SamplerBricked, ContinuousAcrossBrickAndLevelBorders) {
+    // Lines through every kind of border of the mixed layout (level 0/1, 0/2, 1/2 and same-level
+    // faces): globally linear data needs no stitching; a smooth non-linear field is stitched.
+    const glm::uvec3 top(2, 1, 2);
+    const VolumeDesc desc = brickedDesc(bricktest::mixedLayout(top), top, {}, Storage::Float32);
+    const auto smooth = [](glm::vec3 x) {
+        sh::ShRgb s = affineField(x);
+        for (int i = 0; i < sh::kMaxCoefficients; ++i) {
+            s.rgb[i] += glm::vec3(std::sin(1.3f * x.x + 0.2f * float(i)) * std::cos(0.9f * x.z));
+        }
+        return s;
+    };
+    const Volume linear = bricktest::makeBrickedVolume(desc, affineField, false);
+    const Volume stitched = bricktest::makeBrickedVolume(desc, smooth, true);
+    const glm::uvec3 cells = brick::finestCells(top, desc.bricks.maxLevel);
+    const grid::Aabb& box = desc.grid.bounds();
+    const glm::vec3 cell = box.size() / glm::vec3(cells);
+    float worst = 0.0f;
+    for (int axis = 0; axis < 3; ++axis) {
+        // Every interior finest-cell face on this axis, crossed at irrational points.
+        for (uint32_t face = 1; face < cells[axis]; ++face) {
+            for (int k = 0; k < 20; ++k) {
+                glm::vec3 local = desc.grid.frame().toLocal(boxPoint(desc, k + 20 * int(face)));
+                local[axis] = box.min[axis] + float(face) * cell[axis];
+                glm::vec3 step(0.0f);
+                step[axis] = kBorderStep;
+                for (const Volume* v : {&linear, &stitched}) {
+                    const sh::ShRgb a = runtime::sampleVolumeSh(*v, local - step);
+                    const sh::ShRgb b = runtime::sampleVolumeSh(*v, local + step);
+                    for (int i = 0; i < sh::kMaxCoefficients; ++i) {
+                        const glm::vec3 d = glm::abs(a.rgb[i] - b.rgb[i]);
+                        worst = std::max(worst, std::max(d.x, std::max(d.y, d.z)));
+                    }
+                }
+            }
+        }
+    }
+    std::printf("[ figures  ] largest jump across bricked borders: %.3g (bound %.0e)\n",
+                double(worst), double(kBorderJump));
+    EXPECT_LE(worst, kBorderJump);
 }
