@@ -13,6 +13,7 @@
 #include <glm/gtc/matrix_access.hpp>
 #include <glm/gtc/quaternion.hpp>
 
+#include "bricked.hpp"
 #include "lpv_method.hpp"
 #include "path_integrator.hpp"
 #include "probekit/baker/bake.hpp"
@@ -136,6 +137,14 @@ uint64_t peakResidentBytes() {
 
 } // namespace
 
+glm::vec3 probeSpacing(const VolumeDesc& desc) {
+    if (desc.layout == VolumeLayout::Bricked) {
+        const glm::uvec3 cells = brick::finestCells(desc.grid.resolution(), desc.bricks.maxLevel);
+        return desc.grid.bounds().size() / glm::vec3(cells * brick::kBrickCells);
+    }
+    return desc.grid.spacing();
+}
+
 Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeConfig& config) {
     std::vector<VolumeConfig> configs = config.volumes;
     if (configs.empty()) {
@@ -215,19 +224,24 @@ Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeCon
                 }
             }
         }
+        const bool bricked = v.layout == VolumeLayout::Bricked;
         glm::uvec3 res;
         if (v.resolution) {
             res = *v.resolution;
         } else {
             const glm::vec3 size = box.size();
             for (int a = 0; a < 3; ++a) {
-                res[a] = std::min(roundToPowerOfTwo(size[a] * density), v.maxResolution);
+                // Bricked: level-0 bricks, each spanning 3 probe spacings.
+                const float probes =
+                    size[a] * density / (bricked ? float(brick::kBrickCells) : 1.0f);
+                res[a] = std::min(roundToPowerOfTwo(probes), v.maxResolution);
                 if (v.position == grid::PositionMode::Corner) {
                     res[a] = std::max(res[a], 2u);
                 }
             }
         }
-        Result<grid::GridLayout> layout = grid::GridLayout::make(box, res, v.position, frame);
+        Result<grid::GridLayout> layout = grid::GridLayout::make(
+            box, res, bricked ? grid::PositionMode::Center : v.position, frame);
         if (!layout) {
             return makeError(layout.error().code, label + ": " + layout.error().message);
         }
@@ -238,6 +252,10 @@ Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeCon
         desc.storage = v.storage;
         desc.blendPriority = v.blendPriority;
         desc.fadeDistance = v.fadeDistance;
+        if (bricked) {
+            desc.layout = VolumeLayout::Bricked;
+            desc.bricks.maxLevel = v.maxLevel;
+        }
         out.push_back(std::move(desc));
     }
     const uint64_t bytes = estimateBakeMemory(out);
@@ -266,7 +284,7 @@ VplConfig resolveVplConfig(const Scene& scene, const std::vector<VolumeDesc>& vo
         // count >= 4 area / h^2.
         double spacing = INFINITY;
         for (const VolumeDesc& d : volumes) {
-            const glm::vec3 s = d.grid.spacing();
+            const glm::vec3 s = probeSpacing(d);
             spacing = std::min(spacing, double(std::min({s.x, s.y, s.z})));
         }
         const double wanted = spacing > 0.0 ? 4.0 * area / (spacing * spacing) : 0.0;
@@ -288,7 +306,12 @@ VplConfig resolveVplConfig(const Scene& scene, const std::vector<VolumeDesc>& vo
 uint64_t estimateBakeMemory(const std::vector<VolumeDesc>& volumes) {
     uint64_t total = 0;
     for (const VolumeDesc& d : volumes) {
-        const uint64_t probes = d.grid.probeCount();
+        // Bricked: level 0 (3 probes per brick and axis, plus one); refinement is bounded by
+        // the budget afterwards.
+        const glm::uvec3 lattice = d.grid.resolution() * brick::kBrickCells + 1u;
+        const uint64_t probes = d.layout == VolumeLayout::Bricked
+                                    ? uint64_t(lattice.x) * lattice.y * lattice.z
+                                    : d.grid.probeCount();
         const uint64_t texels = uint64_t(planeCount(d.shOrder)) * 4 * 4; // float staging
         total += probes *
                  (sizeof(sh::ShRgb) + 1 + texels + texels / 2 * (d.storage == Storage::Float16));
@@ -314,11 +337,14 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     BakeResult result;
     result.stats.threads =
         options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
-    uint64_t total_probes = 0;
-    for (const VolumeDesc& d : descs.value()) {
-        total_probes += d.grid.probeCount();
-    }
+    // Grows as batches are queued: a bricked volume's probes are known only as it refines.
+    std::atomic<uint64_t> total_probes{0};
     std::atomic<uint64_t> probes_done{0};
+    std::vector<VolumeConfig> volume_configs = config.volumes;
+    if (volume_configs.empty()) {
+        volume_configs.push_back(VolumeConfig{});
+    }
+    std::vector<VolumeDesc> baked_descs = descs.value();
     std::atomic<uint64_t> rays{0};
     std::atomic<uint64_t> cut_total{0};
 
@@ -353,7 +379,7 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     auto report = [&] {
         if (options.progress) {
             options.progress(BakeProgress{
-                probes_done.load(), total_probes,
+                probes_done.load(), total_probes.load(),
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()});
         }
     };
@@ -378,64 +404,111 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
                                    desc.shOrder);
         }
 
+        // Bakes any set of positions on the pool. Each probe's result depends only on
+        // (seed, volume, id), so scheduling never changes the output.
+        ProbeBatchFn bake_batch = [&](std::span<const glm::vec3> positions,
+                                      std::span<const uint64_t> ids, std::span<sh::ShRgb> out_sh,
+                                      std::span<uint8_t> out_valid) {
+            const size_t count = positions.size();
+            total_probes.fetch_add(count);
+            std::atomic<size_t> next{0};
+            // Small chunks keep both threads busy to the end.
+            constexpr size_t kChunk = 4;
+            auto worker = [&] {
+                uint64_t local_rays = 0;
+                uint64_t local_cut = 0;
+                for (;;) {
+                    const size_t begin = next.fetch_add(kChunk);
+                    if (begin >= count) {
+                        break;
+                    }
+                    const size_t end = std::min(count, begin + kChunk);
+                    for (size_t i = begin; i < end; ++i) {
+                        const glm::vec3 p = positions[i];
+                        ProbeSample s;
+                        if (vpl_integrator) {
+                            const VplProbeSample v =
+                                vpl_integrator->bakeProbe(p, config.seed, vi, ids[i]);
+                            s = v.probe;
+                            local_cut += v.cutSize;
+                        } else {
+                            s = integrator.bakeProbe(p, config.seed, vi, ids[i]);
+                        }
+                        if (lpv_cascades) {
+                            s.sh = lpvProbe(*lpv_cascades, config.lpv, p, s.sh);
+                        }
+                        out_sh[i] = s.sh;
+                        out_valid[i] = s.backFaceFraction > config.backfaceThreshold ? kProbeInvalid
+                                                                                     : kProbeValid;
+                        local_rays += s.rays;
+                    }
+                    probes_done.fetch_add(end - begin);
+                }
+                rays.fetch_add(local_rays);
+                cut_total.fetch_add(local_cut);
+            };
+            const uint64_t batch_end = probes_done.load() + count;
+            std::vector<std::thread> pool;
+            const uint32_t pool_size =
+                options.progress ? result.stats.threads : result.stats.threads - 1;
+            for (uint32_t t = 0; t < pool_size; ++t) {
+                pool.emplace_back(worker);
+            }
+            if (options.progress) {
+                // The calling thread only reports, so callbacks never run on a pool thread.
+                while (probes_done.load() < batch_end) {
+                    report();
+                    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+                }
+            } else {
+                worker();
+            }
+            for (std::thread& t : pool) {
+                t.join();
+            }
+        };
+
+        if (desc.layout == VolumeLayout::Bricked) {
+            const VolumeConfig& vc = volume_configs[vi];
+            BrickedSettings bs;
+            bs.maxLevel = vc.maxLevel;
+            bs.refineError = vc.refineError;
+            bs.budgetBytes = config.maxMemoryBytes;
+            bs.dilate = config.dilate;
+            Result<BrickedOutcome> bricked = bakeBricked(scene, desc, desc.shOrder, bs, bake_batch);
+            if (!bricked) {
+                return bricked.error();
+            }
+            BrickedOutcome& b = bricked.value();
+            for (int l = 0; l < 4; ++l) {
+                result.stats.bricksPerLevel[l] += b.bricksPerLevel[l];
+            }
+            result.stats.refineCandidates += b.refineCandidates;
+            result.stats.budgetDropped += b.budgetDropped;
+            result.stats.budgetError = std::max(result.stats.budgetError, b.budgetError);
+            result.stats.predictedInterpolationError =
+                std::max(result.stats.predictedInterpolationError, b.predictedError);
+            result.stats.invalidProbes += b.invalidProbes;
+            result.warnings.insert(result.warnings.end(), b.warnings.begin(), b.warnings.end());
+            Result<Volume> volume = makeVolume(b.desc, b.probes, b.validity);
+            if (!volume) {
+                return volume.error();
+            }
+            baked_descs[vi] = b.desc;
+            result.file.volumes.push_back(std::move(volume).value());
+            continue;
+        }
+
         const size_t count = desc.grid.probeCount();
+        std::vector<glm::vec3> positions(count);
+        std::vector<uint64_t> ids(count);
+        for (size_t i = 0; i < count; ++i) {
+            positions[i] = desc.grid.probeWorld(desc.grid.probeCoords(i));
+            ids[i] = i;
+        }
         std::vector<sh::ShRgb> probes(count);
         std::vector<uint8_t> validity(count, kProbeValid);
-        std::atomic<size_t> next{0};
-        // Small chunks keep both threads busy to the end; each probe's result depends only on
-        // (seed, volume, probe), so scheduling never changes the output.
-        constexpr size_t kChunk = 4;
-        auto worker = [&] {
-            uint64_t local_rays = 0;
-            uint64_t local_cut = 0;
-            for (;;) {
-                const size_t begin = next.fetch_add(kChunk);
-                if (begin >= count) {
-                    break;
-                }
-                const size_t end = std::min(count, begin + kChunk);
-                for (size_t i = begin; i < end; ++i) {
-                    const glm::vec3 p = desc.grid.probeWorld(desc.grid.probeCoords(i));
-                    ProbeSample s;
-                    if (vpl_integrator) {
-                        const VplProbeSample v = vpl_integrator->bakeProbe(p, config.seed, vi, i);
-                        s = v.probe;
-                        local_cut += v.cutSize;
-                    } else {
-                        s = integrator.bakeProbe(p, config.seed, vi, i);
-                    }
-                    if (lpv_cascades) {
-                        s.sh = lpvProbe(*lpv_cascades, config.lpv, p, s.sh);
-                    }
-                    probes[i] = s.sh;
-                    validity[i] =
-                        s.backFaceFraction > config.backfaceThreshold ? kProbeInvalid : kProbeValid;
-                    local_rays += s.rays;
-                }
-                probes_done.fetch_add(end - begin);
-            }
-            rays.fetch_add(local_rays);
-            cut_total.fetch_add(local_cut);
-        };
-        const uint64_t volume_end = probes_done.load() + count;
-        std::vector<std::thread> pool;
-        const uint32_t pool_size =
-            options.progress ? result.stats.threads : result.stats.threads - 1;
-        for (uint32_t t = 0; t < pool_size; ++t) {
-            pool.emplace_back(worker);
-        }
-        if (options.progress) {
-            // The calling thread only reports, so callbacks never run on a pool thread.
-            while (probes_done.load() < volume_end) {
-                report();
-                std::this_thread::sleep_for(std::chrono::milliseconds(100));
-            }
-        } else {
-            worker();
-        }
-        for (std::thread& t : pool) {
-            t.join();
-        }
+        bake_batch(positions, ids, probes, validity);
 
         const uint64_t invalid = uint64_t(std::count(validity.begin(), validity.end(), 0));
         result.stats.invalidProbes += invalid;
@@ -457,13 +530,13 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
 
     result.stats.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    result.stats.probes = total_probes;
+    result.stats.probes = total_probes.load();
     result.stats.rays = rays.load();
     result.stats.mraysPerSecond =
         result.stats.seconds > 0 ? double(result.stats.rays) / result.stats.seconds * 1e-6 : 0;
     result.stats.peakMemoryBytes = peakResidentBytes();
-    if (vpl_gatherer && total_probes > 0) {
-        result.stats.vplMeanCut = double(cut_total.load()) / double(total_probes);
+    if (vpl_gatherer && total_probes.load() > 0) {
+        result.stats.vplMeanCut = double(cut_total.load()) / double(total_probes.load());
     }
 
     BakeMetadata& m = result.file.metadata;

@@ -190,7 +190,8 @@ BoundsConfig parseBounds(const Reader& r, const Json& j, const std::string& path
 VolumeConfig parseVolume(const Reader& r, const Json& j, const std::string& path) {
     r.checkKeys(j, path,
                 {"name", "bounds", "resolution", "density", "max_resolution", "position", "format",
-                 "sh_order", "blend_priority", "fade_distance"});
+                 "sh_order", "blend_priority", "fade_distance", "layout", "levels",
+                 "refine_error"});
     VolumeConfig v;
     if (j.contains("name")) {
         v.name = r.string(j["name"], path + ".name");
@@ -253,6 +254,21 @@ VolumeConfig parseVolume(const Reader& r, const Json& j, const std::string& path
         if (v.fadeDistance < 0.0f) {
             r.fail(path + ".fade_distance", "must be >= 0");
         }
+    }
+    if (j.contains("layout")) {
+        v.layout = r.choice(j["layout"], path + ".layout", {"dense", "bricked"}) == "bricked"
+                       ? VolumeLayout::Bricked
+                       : VolumeLayout::Dense;
+    }
+    if (j.contains("levels")) {
+        v.maxLevel = uint32_t(r.unsignedInt(j["levels"], path + ".levels", 0, brick::kMaxLevel));
+    }
+    if (j.contains("refine_error")) {
+        v.refineError = float(r.positive(j["refine_error"], path + ".refine_error"));
+    }
+    if (v.layout == VolumeLayout::Bricked && v.position == grid::PositionMode::Corner) {
+        r.fail(path + ".position",
+               "bricked volumes place probes on brick corners themselves; omit \"position\"");
     }
     return v;
 }
@@ -631,7 +647,12 @@ std::string describeConfig(const BakeConfig& c) {
             {"format", std::string(toString(v.storage))},
             {"sh_order", int(v.shOrder)},
             {"blend_priority", v.blendPriority},
-            {"fade_distance", v.fadeDistance}};
+            {"fade_distance", v.fadeDistance},
+            {"layout", std::string(toString(v.layout))}};
+        if (v.layout == VolumeLayout::Bricked) {
+            jv["levels"] = v.maxLevel;
+            jv["refine_error"] = v.refineError;
+        }
         if (v.bounds.mode == BoundsMode::Custom) {
             jv["bounds"]["min"] = {v.bounds.min.x, v.bounds.min.y, v.bounds.min.z};
             jv["bounds"]["max"] = {v.bounds.max.x, v.bounds.max.y, v.bounds.max.z};

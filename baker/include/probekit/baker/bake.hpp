@@ -53,6 +53,15 @@ struct VolumeConfig {
     sh::Order shOrder = sh::Order::L2;
     int32_t blendPriority = 0;
     float fadeDistance = 0.0f; // metres
+    // Bricked (adaptive) layout (formats/.../brick.hpp). `resolution`, `density` and
+    // `maxResolution` then describe level 0: bricks per axis, explicit or
+    // round_pow2(size * density / 3) (a brick spans 3 probe spacings).
+    VolumeLayout layout = VolumeLayout::Dense;
+    uint32_t maxLevel = 2; // bricked: finer levels allowed over level 0 (0..3), each 2x denser
+    // Bricked: a brick is split into 8 finer bricks when its interpolation at the finer probes
+    // disagrees with their baked irradiance by more than this fraction of the volume's RMS
+    // irradiance (the error measure of the bake's --target-error, see BakeConfig::targetError).
+    float refineError = 0.05f;
 };
 
 struct EnvironmentConfig {
@@ -166,6 +175,9 @@ struct BakeConfig {
     EnvironmentConfig environment;
     float backfaceThreshold = 0.25f; // probe invalid when more of its rays hit back faces
     bool dilate = true;              // fill invalid probes from valid neighbours
+    // Dense volumes: the bake's working memory may not exceed this (error). Bricked volumes:
+    // budget for their GPU bytes (texels + indirection); when it binds, the refinements whose
+    // removal costs the least error are dropped (BakeStats::budgetDropped / budgetError).
     uint64_t maxMemoryBytes = 4ull << 30;
     std::vector<VolumeConfig> volumes; // empty = one auto-world volume with defaults
 };
@@ -186,6 +198,10 @@ Result<Environment> makeEnvironment(const EnvironmentConfig& config);
 // field for zero-size or inverted bounds, unknown nodes, an empty scene with automatic bounds,
 // bad resolutions, or a total size beyond config.maxMemoryBytes.
 Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeConfig& config);
+
+// Smallest distance between probes a volume may have per axis, metres: the grid spacing of a
+// dense volume, the deepest level's spacing of a bricked one.
+glm::vec3 probeSpacing(const VolumeDesc& desc);
 
 // The VPL settings a bake uses: config.vpl with count and clampDistance filled in by the rules
 // documented on VplConfig (surface area of the scene's triangles; probe spacing of `volumes`,
@@ -219,6 +235,16 @@ struct BakeStats {
     uint64_t vpls = 0;          // methods vpl and lpv: VPLs in the set
     uint64_t vplLightPaths = 0; // method vpl: light paths traced to place them
     double vplMeanCut = 0.0;    // method vpl: clusters gathered per probe, mean
+    // Bricked volumes (summed over them):
+    uint64_t bricksPerLevel[4] = {0, 0, 0, 0}; // leaf bricks written, by level
+    uint64_t refineCandidates = 0;             // bricks whose finer probes were baked to test them
+    uint64_t budgetDropped = 0;                // refinements removed by max_memory_mb
+    // Largest disagreement (fraction of RMS irradiance) of a refinement the budget removed:
+    // the error the budget cost where it cost most. 0 when the budget did not bind.
+    double budgetError = 0.0;
+    // Predicted interpolation error of the bricked volumes (fraction of RMS irradiance, RMS
+    // over the volume) from the measured disagreements of their leaves.
+    double predictedInterpolationError = 0.0;
 };
 
 struct BakeResult {

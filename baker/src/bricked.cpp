@@ -1,0 +1,578 @@
+#include "bricked.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <queue>
+#include <unordered_map>
+
+#include <glm/common.hpp>
+
+#include "probekit/formats/brick.hpp"
+
+namespace probekit::baker {
+namespace {
+
+using brick::Brick;
+using brick::kBrickCells;
+using brick::kBrickProbeCount;
+using brick::kBrickSize;
+
+const glm::vec3 kAxisNormals[6] = {{1, 0, 0},  {-1, 0, 0}, {0, 1, 0},
+                                   {0, -1, 0}, {0, 0, 1},  {0, 0, -1}};
+
+struct Node {
+    Brick brick;
+    int parent = -1;
+    int firstChild = -1;    // children are 8 consecutive nodes (x fastest)
+    float predicted = 0.0f; // predicted disagreement before testing
+    float measured = -1.0f; // largest disagreement at the finer probes; < 0 = not tested
+    float measuredRms = 0.0f;
+    float octant[8] = {}; // largest disagreement on each child's region
+};
+
+// The baked probes, one per lattice point of the finest level (3 * finest cells + 1 points per
+// axis), baked on demand.
+class Lattice {
+public:
+    Lattice(const VolumeDesc& desc, uint32_t max_level, const ProbeBatchFn& bake_batch)
+        : m_desc(desc), m_bake(bake_batch) {
+        m_cells = brick::finestCells(desc.grid.resolution(), max_level);
+        m_points = m_cells * kBrickCells + 1u;
+    }
+
+    uint64_t key(glm::uvec3 u) const {
+        return u.x + uint64_t(m_points.x) * (u.y + uint64_t(m_points.y) * u.z);
+    }
+    glm::uvec3 coord(uint64_t k) const {
+        return glm::uvec3(uint32_t(k % m_points.x), uint32_t((k / m_points.x) % m_points.y),
+                          uint32_t(k / (uint64_t(m_points.x) * m_points.y)));
+    }
+    glm::uvec3 points() const { return m_points; }
+
+    glm::vec3 world(glm::uvec3 u) const {
+        const grid::Aabb& box = m_desc.grid.bounds();
+        const glm::vec3 t = glm::vec3(u) / glm::vec3(m_cells * kBrickCells);
+        return m_desc.grid.frame().toWorld(box.min + t * box.size());
+    }
+
+    // Bakes every point of `wanted` not baked yet, in one batch.
+    void ensure(const std::vector<glm::uvec3>& wanted) {
+        std::vector<uint64_t> keys;
+        for (const glm::uvec3& u : wanted) {
+            const uint64_t k = key(u);
+            if (!m_index.contains(k)) {
+                keys.push_back(k);
+            }
+        }
+        std::sort(keys.begin(), keys.end());
+        keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+        if (keys.empty()) {
+            return;
+        }
+        std::vector<glm::vec3> positions(keys.size());
+        for (size_t i = 0; i < keys.size(); ++i) {
+            positions[i] = world(coord(keys[i]));
+        }
+        std::vector<sh::ShRgb> sh(keys.size());
+        std::vector<uint8_t> valid(keys.size());
+        m_bake(positions, keys, sh, valid);
+        for (size_t i = 0; i < keys.size(); ++i) {
+            m_index.emplace(keys[i], uint32_t(m_sh.size()));
+            m_sh.push_back(sh[i]);
+            m_valid.push_back(valid[i]);
+        }
+    }
+
+    bool has(glm::uvec3 u) const { return m_index.contains(key(u)); }
+    uint32_t index(glm::uvec3 u) const { return m_index.at(key(u)); }
+    const sh::ShRgb& sh(glm::uvec3 u) const { return m_sh[index(u)]; }
+    bool valid(glm::uvec3 u) const { return m_valid[index(u)] == kProbeValid; }
+    std::vector<sh::ShRgb>& allSh() { return m_sh; }
+    std::vector<uint8_t>& allValid() { return m_valid; }
+    const std::unordered_map<uint64_t, uint32_t>& indexMap() const { return m_index; }
+
+private:
+    const VolumeDesc& m_desc;
+    const ProbeBatchFn& m_bake;
+    glm::uvec3 m_cells;
+    glm::uvec3 m_points;
+    std::unordered_map<uint64_t, uint32_t> m_index;
+    std::vector<sh::ShRgb> m_sh;
+    std::vector<uint8_t> m_valid;
+};
+
+// Lattice points of a brick's region at `sub` probes per brick spacing (sub = 1: its own 64
+// probes; sub = 2: the 7^3 points of the next level).
+std::vector<glm::uvec3> regionPoints(const Brick& b, uint32_t max_level, uint32_t sub) {
+    const uint32_t step = (1u << (max_level - b.level)) / sub;
+    const glm::uvec3 origin = b.coord * kBrickCells * (1u << (max_level - b.level));
+    const uint32_t n = kBrickCells * sub + 1;
+    std::vector<glm::uvec3> out;
+    out.reserve(size_t(n) * n * n);
+    for (uint32_t z = 0; z < n; ++z) {
+        for (uint32_t y = 0; y < n; ++y) {
+            for (uint32_t x = 0; x < n; ++x) {
+                out.push_back(origin + glm::uvec3(x, y, z) * step);
+            }
+        }
+    }
+    return out;
+}
+
+// Largest |E_a(n) - E_b(n)| over the six axis normals and the three channels.
+float irradianceDifference(const sh::ShRgb& a, const sh::ShRgb& b, sh::Order order) {
+    sh::ShRgb d = b;
+    d *= -1.0f;
+    d += a;
+    float worst = 0.0f;
+    for (const glm::vec3& n : kAxisNormals) {
+        const glm::vec3 e = glm::abs(sh::irradiance(d, order, n));
+        worst = std::max({worst, e.x, e.y, e.z});
+    }
+    return worst;
+}
+
+struct Disagreement {
+    float max = 0.0f;
+    float rms = 0.0f;
+    float octant[8] = {};
+};
+
+// Compares the brick's trilinear interpolation with baked values at `sub` points per brick
+// spacing. Points inside geometry, or whose interpolation reads a probe inside geometry, are
+// skipped: their values are dilated, not lit.
+Disagreement measure(const Lattice& lattice, const Brick& b, uint32_t max_level, uint32_t sub,
+                     sh::Order order, float scale) {
+    std::vector<sh::ShRgb> own(kBrickProbeCount);
+    std::vector<uint8_t> own_valid(kBrickProbeCount);
+    const std::vector<glm::uvec3> own_points = regionPoints(b, max_level, 1);
+    for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
+        own[k] = lattice.sh(own_points[k]);
+        own_valid[k] = lattice.valid(own_points[k]);
+    }
+    const uint32_t n = kBrickCells * sub + 1;
+    const std::vector<glm::uvec3> points = regionPoints(b, max_level, sub);
+    Disagreement d;
+    double sum2 = 0.0;
+    size_t count = 0;
+    for (uint32_t z = 0; z < n; ++z) {
+        for (uint32_t y = 0; y < n; ++y) {
+            for (uint32_t x = 0; x < n; ++x) {
+                const glm::uvec3 u = points[x + n * (y + n * z)];
+                if (!lattice.has(u) || !lattice.valid(u)) {
+                    continue;
+                }
+                const glm::vec3 local = glm::vec3(x, y, z) / float(sub);
+                bool corners_valid = true;
+                const glm::uvec3 lo = glm::min(glm::uvec3(local), glm::uvec3(kBrickCells - 1));
+                for (uint32_t c = 0; c < 8; ++c) {
+                    const glm::uvec3 p = lo + glm::uvec3(c & 1, (c >> 1) & 1, c >> 2);
+                    corners_valid &= own_valid[p.x + kBrickSize * (p.y + kBrickSize * p.z)] != 0;
+                }
+                if (!corners_valid) {
+                    continue;
+                }
+                const float e =
+                    irradianceDifference(brick::interpolate(own, local), lattice.sh(u), order) /
+                    scale;
+                d.max = std::max(d.max, e);
+                sum2 += double(e) * e;
+                ++count;
+                // Octants: the child regions the point belongs to (border points to several).
+                const uint32_t half = n / 2; // points 0..half in the low child, half..n-1 high
+                for (uint32_t o = 0; o < 8; ++o) {
+                    const glm::uvec3 hi(o & 1, (o >> 1) & 1, o >> 2);
+                    const glm::uvec3 q(x, y, z);
+                    bool inside = true;
+                    for (int a = 0; a < 3; ++a) {
+                        inside &= hi[a] ? q[a] >= half : q[a] <= half;
+                    }
+                    if (inside) {
+                        d.octant[o] = std::max(d.octant[o], e);
+                    }
+                }
+            }
+        }
+    }
+    d.rms = count ? float(std::sqrt(sum2 / double(count))) : 0.0f;
+    return d;
+}
+
+// For each level, which regions have a triangle's bounding box within one probe spacing.
+class GeometryReach {
+public:
+    GeometryReach(const Scene& scene, const VolumeDesc& desc, uint32_t max_level) {
+        const grid::Aabb& box = desc.grid.bounds();
+        const glm::uvec3 top = desc.grid.resolution();
+        m_levels.resize(max_level + 1);
+        for (uint32_t l = 0; l <= max_level; ++l) {
+            m_levels[l].regions = top * (1u << l);
+            const glm::uvec3 r = m_levels[l].regions;
+            m_levels[l].near.assign(size_t(r.x) * r.y * r.z, 0);
+        }
+        for (const glm::uvec3& t : scene.triangles) {
+            glm::vec3 lo(INFINITY), hi(-INFINITY);
+            for (int v = 0; v < 3; ++v) {
+                const glm::vec3 p = desc.grid.frame().toLocal(scene.positions[t[v]]);
+                lo = glm::min(lo, p);
+                hi = glm::max(hi, p);
+            }
+            for (Level& level : m_levels) {
+                const glm::vec3 region = box.size() / glm::vec3(level.regions);
+                const glm::vec3 reach = region / float(kBrickCells);
+                const glm::vec3 a = (lo - reach - box.min) / region;
+                const glm::vec3 b = (hi + reach - box.min) / region;
+                if (glm::any(glm::lessThan(b, glm::vec3(0.0f))) ||
+                    glm::any(glm::greaterThanEqual(a, glm::vec3(level.regions)))) {
+                    continue;
+                }
+                const glm::uvec3 first(glm::max(glm::floor(a), 0.0f));
+                const glm::uvec3 last = glm::min(glm::uvec3(glm::floor(b)), level.regions - 1u);
+                for (uint32_t z = first.z; z <= last.z; ++z) {
+                    for (uint32_t y = first.y; y <= last.y; ++y) {
+                        for (uint32_t x = first.x; x <= last.x; ++x) {
+                            level.near[x + size_t(level.regions.x) *
+                                               (y + size_t(level.regions.y) * z)] = 1;
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    bool near(const Brick& b) const {
+        const Level& level = m_levels[b.level];
+        return level.near[b.coord.x + size_t(level.regions.x) *
+                                          (b.coord.y + size_t(level.regions.y) * b.coord.z)];
+    }
+
+private:
+    struct Level {
+        glm::uvec3 regions;
+        std::vector<uint8_t> near;
+    };
+    std::vector<Level> m_levels;
+};
+
+// RMS over valid points, normals and channels of the irradiance: the error scale.
+float irradianceScale(const Lattice& lattice, const std::vector<glm::uvec3>& points,
+                      sh::Order order) {
+    double sum2 = 0.0;
+    size_t count = 0;
+    for (const glm::uvec3& u : points) {
+        if (!lattice.valid(u)) {
+            continue;
+        }
+        for (const glm::vec3& n : kAxisNormals) {
+            const glm::vec3 e = sh::irradiance(lattice.sh(u), order, n);
+            sum2 += double(glm::dot(e, e));
+            count += 3;
+        }
+    }
+    const double rms = count ? std::sqrt(sum2 / double(count)) : 0.0;
+    return rms > 0.0 ? float(rms) : 1.0f;
+}
+
+// Fills invalid lattice points from the valid ones nearest on the lattice: the mean of the
+// valid points among the 26 neighbours at the smallest step (1, 2, 4, ... lattice units) that
+// has any. Points filled in one pass become sources in the next, so the result does not
+// depend on visiting order. Returns the points left unfilled.
+uint64_t dilateLattice(Lattice& lattice, const std::vector<uint64_t>& used, uint32_t max_step) {
+    std::vector<uint8_t>& valid = lattice.allValid();
+    std::vector<uint8_t> filled = valid;
+    std::vector<sh::ShRgb>& sh = lattice.allSh();
+    const glm::ivec3 points(lattice.points());
+    std::vector<uint64_t> missing;
+    for (uint64_t k : used) {
+        if (!filled[lattice.indexMap().at(k)]) {
+            missing.push_back(k);
+        }
+    }
+    while (!missing.empty()) {
+        std::vector<std::pair<uint32_t, sh::ShRgb>> updates;
+        std::vector<uint64_t> still;
+        for (uint64_t k : missing) {
+            const glm::ivec3 u(lattice.coord(k));
+            sh::ShRgb sum;
+            int count = 0;
+            for (uint32_t step = 1; step <= max_step && count == 0; step *= 2) {
+                for (int n = 0; n < 27; ++n) {
+                    const glm::ivec3 d(n % 3 - 1, (n / 3) % 3 - 1, n / 9 - 1);
+                    const glm::ivec3 v = u + d * int(step);
+                    if (n == 13 || glm::any(glm::lessThan(v, glm::ivec3(0))) ||
+                        glm::any(glm::greaterThanEqual(v, points))) {
+                        continue;
+                    }
+                    const auto it = lattice.indexMap().find(lattice.key(glm::uvec3(v)));
+                    if (it != lattice.indexMap().end() && filled[it->second]) {
+                        sum += sh[it->second];
+                        ++count;
+                    }
+                }
+            }
+            if (count > 0) {
+                sum *= 1.0f / float(count);
+                updates.emplace_back(lattice.indexMap().at(k), sum);
+            } else {
+                still.push_back(k);
+            }
+        }
+        if (updates.empty()) {
+            return still.size();
+        }
+        for (auto& [i, value] : updates) {
+            sh[i] = value;
+            filled[i] = 1;
+        }
+        missing = std::move(still);
+    }
+    return 0;
+}
+
+} // namespace
+
+uint64_t brickedGpuBytes(glm::uvec3 top_bricks, uint32_t max_level, uint64_t bricks,
+                         sh::Order order, Storage storage) {
+    const glm::uvec3 cells = brick::finestCells(top_bricks, max_level);
+    return bricks * kBrickProbeCount * planeCount(order) * 4 * bytesPerComponent(storage) +
+           uint64_t(cells.x) * cells.y * cells.z * sizeof(uint32_t);
+}
+
+Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, sh::Order order,
+                                   const BrickedSettings& settings,
+                                   const ProbeBatchFn& bake_batch) {
+    const uint32_t max_level = settings.maxLevel;
+    const glm::uvec3 top = desc.grid.resolution();
+    Lattice lattice(desc, max_level, bake_batch);
+    const GeometryReach reach(scene, desc, max_level);
+    const float threshold = settings.refineError;
+
+    // Level 0: every brick, baked in one batch.
+    std::vector<Node> nodes;
+    for (const Brick& b : brick::uniformLayout(top, 0).bricks) {
+        nodes.push_back(Node{b});
+    }
+    std::vector<glm::uvec3> wanted;
+    for (const Node& n : nodes) {
+        const auto pts = regionPoints(n.brick, max_level, 1);
+        wanted.insert(wanted.end(), pts.begin(), pts.end());
+    }
+    lattice.ensure(wanted);
+    const float scale = irradianceScale(lattice, wanted, order);
+
+    // Level-0 prediction: how far the brick's probes stray from its corners' interpolation.
+    for (Node& n : nodes) {
+        const auto pts = regionPoints(n.brick, max_level, 1);
+        std::vector<sh::ShRgb> corners(kBrickProbeCount);
+        for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
+            const glm::uvec3 l(k % 4, (k / 4) % 4, k / 16);
+            const glm::uvec3 c = glm::uvec3(glm::greaterThanEqual(l, glm::uvec3(2))) * 3u;
+            corners[k] = lattice.sh(pts[c.x + 4 * (c.y + 4 * c.z)]);
+        }
+        float worst = 0.0f;
+        for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
+            if (!lattice.valid(pts[k])) {
+                continue;
+            }
+            const glm::vec3 local = glm::vec3(k % 4, (k / 4) % 4, k / 16) / 3.0f;
+            // Interpolate the 2x2x2 corner lattice (corners[] at local 0 and 3 only).
+            sh::ShRgb value;
+            for (uint32_t c = 0; c < 8; ++c) {
+                const glm::uvec3 hi(c & 1, (c >> 1) & 1, c >> 2);
+                float w = 1.0f;
+                for (int a = 0; a < 3; ++a) {
+                    w *= hi[a] ? local[a] : 1.0f - local[a];
+                }
+                const glm::uvec3 p = hi * 3u;
+                sh::ShRgb term = corners[p.x + 4 * (p.y + 4 * p.z)];
+                term *= w;
+                value += term;
+            }
+            worst = std::max(worst, irradianceDifference(value, lattice.sh(pts[k]), order) / scale);
+        }
+        n.predicted = worst / 4.0f;
+    }
+
+    BrickedOutcome out;
+    std::vector<int> frontier(nodes.size());
+    for (size_t i = 0; i < nodes.size(); ++i) {
+        frontier[i] = int(i);
+    }
+    for (uint32_t level = 0; level < max_level; ++level) {
+        std::vector<int> candidates;
+        wanted.clear();
+        for (int i : frontier) {
+            const Node& n = nodes[size_t(i)];
+            if (!(reach.near(n.brick) || n.predicted > threshold)) {
+                continue;
+            }
+            const auto own = regionPoints(n.brick, max_level, 1);
+            if (std::none_of(own.begin(), own.end(),
+                             [&](const glm::uvec3& u) { return lattice.valid(u); })) {
+                continue; // inside geometry: never spent on
+            }
+            candidates.push_back(i);
+            const auto finer = regionPoints(n.brick, max_level, 2);
+            wanted.insert(wanted.end(), finer.begin(), finer.end());
+        }
+        lattice.ensure(wanted);
+        out.refineCandidates += candidates.size();
+        std::vector<int> next;
+        for (int i : candidates) {
+            const Disagreement d =
+                measure(lattice, nodes[size_t(i)].brick, max_level, 2, order, scale);
+            nodes[size_t(i)].measured = d.max;
+            nodes[size_t(i)].measuredRms = d.rms;
+            std::copy(std::begin(d.octant), std::end(d.octant), nodes[size_t(i)].octant);
+            if (d.max <= threshold) {
+                continue;
+            }
+            nodes[size_t(i)].firstChild = int(nodes.size());
+            const Brick parent = nodes[size_t(i)].brick;
+            for (uint32_t o = 0; o < 8; ++o) {
+                Node child;
+                child.brick.level = uint8_t(level + 1);
+                child.brick.coord = parent.coord * 2u + glm::uvec3(o & 1, (o >> 1) & 1, o >> 2);
+                child.parent = i;
+                child.predicted = d.octant[o] / 4.0f;
+                next.push_back(int(nodes.size()));
+                nodes.push_back(child);
+            }
+        }
+        frontier = std::move(next);
+    }
+
+    // The budget: merge the cheapest splits (all of whose children are leaves) until it fits.
+    auto is_leaf = [&](int i) { return nodes[size_t(i)].firstChild < 0; };
+    auto count_leaves = [&] {
+        return uint64_t(std::count_if(nodes.begin(), nodes.end(),
+                                      [](const Node& n) { return n.firstChild < 0; }));
+    };
+    // Nodes removed by merging are marked with parent = -2 and skipped from then on.
+    auto deepest = [&] {
+        uint32_t d = 0;
+        for (const Node& n : nodes) {
+            if (n.parent != -2 && n.firstChild < 0) {
+                d = std::max<uint32_t>(d, n.brick.level);
+            }
+        }
+        return d;
+    };
+    uint64_t leaves = count_leaves();
+    auto bytes = [&] { return brickedGpuBytes(top, deepest(), leaves, order, desc.storage); };
+    if (bytes() > settings.budgetBytes) {
+        using Entry = std::pair<float, int>;
+        std::priority_queue<Entry, std::vector<Entry>, std::greater<>> heap;
+        auto mergeable = [&](int i) {
+            const Node& n = nodes[size_t(i)];
+            if (n.firstChild < 0) {
+                return false;
+            }
+            for (int c = 0; c < 8; ++c) {
+                if (!is_leaf(n.firstChild + c)) {
+                    return false;
+                }
+            }
+            return true;
+        };
+        for (size_t i = 0; i < nodes.size(); ++i) {
+            if (nodes[i].parent != -2 && mergeable(int(i))) {
+                heap.emplace(nodes[i].measured, int(i));
+            }
+        }
+        while (bytes() > settings.budgetBytes && !heap.empty()) {
+            const auto [error, i] = heap.top();
+            heap.pop();
+            Node& n = nodes[size_t(i)];
+            for (int c = 0; c < 8; ++c) {
+                nodes[size_t(n.firstChild + c)].parent = -2;
+                nodes[size_t(n.firstChild + c)].firstChild = -1;
+            }
+            n.firstChild = -1;
+            leaves -= 7;
+            // The merged children no longer count as leaves: count_leaves would see them.
+            ++out.budgetDropped;
+            out.budgetError = std::max(out.budgetError, double(error));
+            if (n.parent >= 0 && mergeable(n.parent)) {
+                heap.emplace(nodes[size_t(n.parent)].measured, n.parent);
+            }
+        }
+        if (bytes() > settings.budgetBytes) {
+            return makeError(ErrorCode::OutOfRange,
+                             "volume '" + desc.name + "': level 0 alone needs " +
+                                 std::to_string((bytes() + (1 << 20) - 1) >> 20) +
+                                 " MiB, more than max_memory_mb = " +
+                                 std::to_string(settings.budgetBytes >> 20) +
+                                 " (fewer level-0 bricks: lower the density or resolution)");
+        }
+    }
+
+    // The leaves, coarse first, then z, y, x.
+    std::vector<int> leaf_nodes;
+    for (size_t i = 0; i < nodes.size(); ++i) {
+        if (nodes[i].parent != -2 && nodes[i].firstChild < 0) {
+            leaf_nodes.push_back(int(i));
+        }
+    }
+    std::sort(leaf_nodes.begin(), leaf_nodes.end(), [&](int a, int b) {
+        const Brick& x = nodes[size_t(a)].brick;
+        const Brick& y = nodes[size_t(b)].brick;
+        return std::tuple(x.level, x.coord.z, x.coord.y, x.coord.x) <
+               std::tuple(y.level, y.coord.z, y.coord.y, y.coord.x);
+    });
+
+    // Predicted interpolation error: per leaf the RMS disagreement where it was measured,
+    // otherwise its prediction, weighted by the leaf's volume.
+    double sum_w = 0.0, sum_e2 = 0.0;
+    for (int i : leaf_nodes) {
+        const Node& n = nodes[size_t(i)];
+        const double e = n.measured >= 0.0f ? n.measuredRms : n.predicted;
+        const double w = std::ldexp(1.0, -3 * int(n.brick.level));
+        sum_w += w;
+        sum_e2 += w * e * e;
+    }
+    out.predictedError = sum_w > 0.0 ? std::sqrt(sum_e2 / sum_w) : 0.0;
+
+    // Re-express every leaf on the lattice of the deepest level actually used.
+    const uint32_t used_level = deepest();
+    out.desc = desc;
+    out.desc.layout = VolumeLayout::Bricked;
+    out.desc.bricks.maxLevel = used_level;
+    std::vector<uint64_t> used_keys;
+    for (int i : leaf_nodes) {
+        const Brick& b = nodes[size_t(i)].brick;
+        out.desc.bricks.bricks.push_back(b);
+        ++out.bricksPerLevel[b.level];
+        for (const glm::uvec3& u : regionPoints(b, max_level, 1)) {
+            used_keys.push_back(lattice.key(u));
+        }
+    }
+    std::vector<uint8_t> original_valid = lattice.allValid();
+    if (settings.dilate) {
+        std::vector<uint64_t> unique = used_keys;
+        std::sort(unique.begin(), unique.end());
+        unique.erase(std::unique(unique.begin(), unique.end()), unique.end());
+        const uint64_t unreachable = dilateLattice(lattice, unique, 1u << max_level);
+        if (unreachable > 0) {
+            out.warnings.push_back("volume '" + desc.name + "': " + std::to_string(unreachable) +
+                                   " invalid probes have no valid probe to dilate from");
+        }
+    }
+    out.probes.reserve(used_keys.size());
+    out.validity.reserve(used_keys.size());
+    for (uint64_t k : used_keys) {
+        const uint32_t index = lattice.indexMap().at(k);
+        out.probes.push_back(lattice.allSh()[index]);
+        out.validity.push_back(original_valid[index]);
+        out.invalidProbes += original_valid[index] == kProbeInvalid;
+    }
+    Result<std::vector<uint32_t>> indirection =
+        brick::buildIndirection(top, out.desc.bricks, "volume '" + desc.name + "'");
+    if (!indirection) {
+        return indirection.error();
+    }
+    brick::stitchBorders(top, out.desc.bricks, indirection.value(), out.probes);
+    return out;
+}
+
+} // namespace probekit::baker
