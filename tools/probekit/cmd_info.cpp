@@ -2,6 +2,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -13,6 +14,34 @@ namespace {
 
 nlohmann::json vec3Json(glm::vec3 v) {
     return nlohmann::json::array({v.x, v.y, v.z});
+}
+
+// Bytes of a dense volume at the finest level of a bricked one: probes on the finest lattice,
+// (3 N + 1) per axis for N finest cells, same planes and storage.
+size_t denseEquivalentBytes(const Volume& v) {
+    const glm::uvec3 cells = brick::finestCells(v.desc.grid.resolution(), v.desc.bricks.maxLevel);
+    const glm::uvec3 probes = cells * brick::kBrickCells + 1u;
+    return size_t(probes.x) * probes.y * probes.z * v.planes() * 4 *
+           bytesPerComponent(v.desc.storage);
+}
+
+// The bricked-only fields: levels, brick counts and the GPU footprint against dense.
+void describeBricks(const Volume& v, nlohmann::json& jv) {
+    const brick::BrickLayout& layout = v.desc.bricks;
+    std::vector<size_t> per_level(layout.maxLevel + 1, 0);
+    for (const brick::Brick& b : layout.bricks) {
+        ++per_level[b.level];
+    }
+    const glm::uvec3 cells = brick::finestCells(v.desc.grid.resolution(), layout.maxLevel);
+    const size_t dense_bytes = denseEquivalentBytes(v);
+    jv["max_level"] = layout.maxLevel;
+    jv["bricks"] = layout.bricks.size();
+    jv["bricks_per_level"] = per_level;
+    jv["finest_cells"] = {cells.x, cells.y, cells.z};
+    jv["indirection_bytes"] = v.indirection.size() * sizeof(uint32_t);
+    jv["gpu_bytes"] = v.gpuBytes();
+    jv["dense_equivalent_bytes"] = dense_bytes;
+    jv["gpu_to_dense_ratio"] = double(v.gpuBytes()) / double(dense_bytes);
 }
 
 nlohmann::json describe(const PvolFile& file, const std::filesystem::path& path) {
@@ -36,7 +65,7 @@ nlohmann::json describe(const PvolFile& file, const std::filesystem::path& path)
         const glm::uvec3 res = g.resolution();
         nlohmann::json jv = {
             {"name", v.desc.name},
-            {"layout", "dense"},
+            {"layout", std::string(toString(v.desc.layout))},
             {"resolution", {res.x, res.y, res.z}},
             {"position", std::string(grid::toString(g.mode()))},
             {"sh_order", int(v.desc.shOrder)},
@@ -56,6 +85,9 @@ nlohmann::json describe(const PvolFile& file, const std::filesystem::path& path)
             {"texel_planes", v.planes()},
             {"texel_bytes", v.texelBytes()},
         };
+        if (v.desc.layout == VolumeLayout::Bricked) {
+            describeBricks(v, jv);
+        }
         j["volumes"].push_back(jv);
     }
     return j;
@@ -74,16 +106,40 @@ void printText(const nlohmann::json& j) {
         const auto& r = v["resolution"];
         const auto& lo = v["bounds_min"];
         const auto& hi = v["bounds_max"];
-        std::printf("  volume '%s': %ux%ux%u %s probes, L%d, %s, %zu texel bytes\n",
-                    v["name"].get<std::string>().c_str(), r[0].get<unsigned>(),
-                    r[1].get<unsigned>(), r[2].get<unsigned>(),
-                    v["position"].get<std::string>().c_str(), v["sh_order"].get<int>(),
-                    v["format"].get<std::string>().c_str(), v["texel_bytes"].get<size_t>());
-        std::printf("    bounds (%g, %g, %g) .. (%g, %g, %g) m, spacing (%g, %g, %g) m\n",
+        const bool bricked = v["layout"] == "bricked";
+        if (bricked) {
+            std::printf("  volume '%s': bricked, %ux%ux%u level-0 bricks, max level %u, L%d, %s\n",
+                        v["name"].get<std::string>().c_str(), r[0].get<unsigned>(),
+                        r[1].get<unsigned>(), r[2].get<unsigned>(), v["max_level"].get<unsigned>(),
+                        v["sh_order"].get<int>(), v["format"].get<std::string>().c_str());
+            std::string per_level;
+            for (size_t level = 0; level < v["bricks_per_level"].size(); ++level) {
+                per_level += (level == 0 ? "" : ", ") + std::string("level ") +
+                             std::to_string(level) + ": " +
+                             std::to_string(v["bricks_per_level"][level].get<size_t>());
+            }
+            std::printf("    bricks %zu (%s)\n", v["bricks"].get<size_t>(), per_level.c_str());
+            const auto& cells = v["finest_cells"];
+            std::printf("    GPU bytes %zu (texels %zu + indirection %zu); dense at the finest "
+                        "level (%ux%ux%u cells) %zu bytes: ratio %.3f\n",
+                        v["gpu_bytes"].get<size_t>(), v["texel_bytes"].get<size_t>(),
+                        v["indirection_bytes"].get<size_t>(), cells[0].get<unsigned>(),
+                        cells[1].get<unsigned>(), cells[2].get<unsigned>(),
+                        v["dense_equivalent_bytes"].get<size_t>(),
+                        v["gpu_to_dense_ratio"].get<double>());
+        } else {
+            std::printf("  volume '%s': %ux%ux%u %s probes, L%d, %s, %zu texel bytes\n",
+                        v["name"].get<std::string>().c_str(), r[0].get<unsigned>(),
+                        r[1].get<unsigned>(), r[2].get<unsigned>(),
+                        v["position"].get<std::string>().c_str(), v["sh_order"].get<int>(),
+                        v["format"].get<std::string>().c_str(), v["texel_bytes"].get<size_t>());
+        }
+        // Bricked: the spacing of the level-0 bricks (the grid is their grid).
+        std::printf("    bounds (%g, %g, %g) .. (%g, %g, %g) m, %s (%g, %g, %g) m\n",
                     lo[0].get<double>(), lo[1].get<double>(), lo[2].get<double>(),
                     hi[0].get<double>(), hi[1].get<double>(), hi[2].get<double>(),
-                    v["spacing"][0].get<double>(), v["spacing"][1].get<double>(),
-                    v["spacing"][2].get<double>());
+                    bricked ? "level-0 brick size" : "spacing", v["spacing"][0].get<double>(),
+                    v["spacing"][1].get<double>(), v["spacing"][2].get<double>());
         std::printf("    probes %zu (valid %zu, invalid %zu), blend priority %d, fade %g m\n",
                     v["probes"].get<size_t>(), v["valid_probes"].get<size_t>(),
                     v["invalid_probes"].get<size_t>(), v["blend_priority"].get<int>(),
