@@ -148,3 +148,71 @@ TEST(VolumeValidate, CatchesInconsistentTexelsAndValidity) {
     v.desc.fadeDistance = -1.0f;
     EXPECT_EQ(validateVolume(v).error().code, ErrorCode::OutOfRange);
 }
+
+namespace {
+// Two level-0 bricks along x, the second split into eight level-1 bricks (max level 1).
+VolumeDesc brickedDesc() {
+    VolumeDesc d = desc(sh::Order::L1, Storage::Float32, glm::uvec3(2, 1, 1));
+    d.name = "bricked_hall";
+    d.layout = VolumeLayout::Bricked;
+    d.bricks.maxLevel = 1;
+    d.bricks.bricks.push_back({glm::uvec3(0, 0, 0), 0});
+    for (uint32_t k = 0; k < 8; ++k) {
+        d.bricks.bricks.push_back({glm::uvec3(2 + (k & 1), (k >> 1) & 1, k >> 2), 1});
+    }
+    return d;
+}
+} // namespace
+
+TEST(VolumeMake, BrickedBuildsTheIndirectionAndCounts64ProbesPerBrick) {
+    const VolumeDesc d = brickedDesc();
+    EXPECT_EQ(d.probeCount(), 9u * 64u);
+    std::vector<sh::ShRgb> probes(d.probeCount());
+    for (size_t i = 0; i < probes.size(); ++i) {
+        probes[i] = distinctSh(i, sh::Order::L1);
+    }
+    auto made = makeVolume(d, probes);
+    ASSERT_TRUE(made.ok()) << made.error().message;
+    const Volume& v = made.value();
+    // Finest cells 4 x 2 x 2: x 0..1 belong to brick 0, x = 2 + i to level-1 bricks 1 + i, ...
+    const std::vector<uint32_t> expected = {0, 0, 1, 2, 0, 0, 3, 4, 0, 0, 5, 6, 0, 0, 7, 8};
+    EXPECT_EQ(v.indirection, expected);
+    EXPECT_EQ(v.gpuBytes(), v.texelBytes() + 16 * sizeof(uint32_t));
+    EXPECT_EQ(v.probe(64 * 3 + 5), probes[64 * 3 + 5]) << "brick order is storage order";
+    EXPECT_TRUE(validateVolume(v).ok());
+
+    // Probe count is bricks * 64, not the grid's.
+    std::vector<sh::ShRgb> grid_count(d.grid.probeCount());
+    EXPECT_EQ(makeVolume(d, grid_count).error().code, ErrorCode::InconsistentSize);
+}
+
+TEST(VolumeMake, BrickedRejectsALayoutThatDoesNotTile) {
+    VolumeDesc d = brickedDesc();
+    d.bricks.bricks.pop_back();
+    std::vector<sh::ShRgb> probes(d.probeCount());
+    auto made = makeVolume(d, probes);
+    ASSERT_FALSE(made.ok());
+    EXPECT_EQ(made.error().code, ErrorCode::InconsistentSize);
+    EXPECT_NE(made.error().message.find("volume 'bricked_hall': finest cell 3,1,1"),
+              std::string::npos)
+        << made.error().message;
+}
+
+TEST(VolumeValidate, CatchesBrickedInconsistencies) {
+    const VolumeDesc d = brickedDesc();
+    std::vector<sh::ShRgb> probes(d.probeCount());
+    const Volume good = makeVolume(d, probes).value();
+
+    Volume stale = good;
+    stale.indirection[3] = 0;
+    EXPECT_EQ(validateVolume(stale).error().code, ErrorCode::InconsistentSize);
+
+    Volume corner = good;
+    corner.desc.grid = grid::GridLayout({glm::vec3(0), glm::vec3(1)}, glm::uvec3(2, 2, 2),
+                                        grid::PositionMode::Corner);
+    EXPECT_EQ(validateVolume(corner).error().code, ErrorCode::BadEnum);
+
+    Volume dense_with_bricks = good;
+    dense_with_bricks.desc.layout = VolumeLayout::Dense;
+    EXPECT_EQ(validateVolume(dense_with_bricks).error().code, ErrorCode::InconsistentSize);
+}
