@@ -142,12 +142,12 @@ void stitchBorders(glm::uvec3 top_bricks, const BrickLayout& layout,
         const uint8_t level_a = layout.bricks[a].level, level_b = layout.bricks[b].level;
         return level_a < level_b || (level_a == level_b && a < b);
     };
+    const auto on_face = [](uint32_t i) { return i == 0 || i == kBrickCells; };
     for (const uint32_t self : order) {
         const Brick& own = layout.bricks[self];
         for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
             const glm::uvec3 local(k % kBrickSize, (k / kBrickSize) % kBrickSize,
                                    k / (kBrickSize * kBrickSize));
-            const auto on_face = [](uint32_t i) { return i == 0 || i == kBrickCells; };
             if (!on_face(local.x) && !on_face(local.y) && !on_face(local.z)) {
                 continue;
             }
