@@ -142,8 +142,9 @@ uint pk_indirection_entry(uint s, ivec3 c) {
 
 // Atlas texture coordinate of brick-local coordinates l (in [0, 3]) of brick `index`: texel
 // slot * 4 + 0.5 + l (probe_volume_layout.h), where linear filtering interpolates exactly the
-// brick's probes floor(l) and floor(l) + 1 with weights fract(l), never a neighbouring slot.
-// Mirrors runtime::brickAtlasSlot.
+// brick's probes floor(l) and floor(l) + 1 with weights fract(l), never a neighbouring slot (the
+// atlas size is a power of two, so this coordinate is exact: runtime::brickAtlasSlots). Mirrors
+// runtime::brickAtlasSlot.
 vec3 pk_atlas_uvw(uint s, uint index, vec3 l) {
     const uvec3 a = pk_volume_set.volumes[s].bricks.xyz;
     const uvec3 slot = uvec3(index % a.x, (index / a.x) % a.y, index / (a.x * a.y));

@@ -97,28 +97,27 @@ std::vector<uint32_t> blendOrder(std::span<const VolumeDesc> descs) {
 }
 
 Result<glm::uvec3> brickAtlasSlots(size_t brick_count, uint32_t max_image_dimension_3d) {
-    const uint64_t n = brick_count;
-    const uint64_t limit = max_image_dimension_3d / PK_BRICK_SIZE;
-    if (n == 0 || limit == 0 || n > limit * limit * limit) {
-        return makeError(ErrorCode::OutOfRange,
-                         std::to_string(n) + " bricks do not fit a brick atlas of at most " +
-                             std::to_string(limit) + " slots per axis (maxImageDimension3D " +
-                             std::to_string(max_image_dimension_3d) + ")");
+    // Slots per axis: powers of two up to the largest that fits the device, 2^limit_log2.
+    uint32_t limit_log2 = 0;
+    while ((uint64_t(PK_BRICK_SIZE) << (limit_log2 + 1)) <= max_image_dimension_3d) {
+        ++limit_log2;
     }
-    // Integer roots, so the shape does not depend on floating-point rounding.
-    uint64_t x = 1;
-    while (x * x * x < n) {
-        ++x;
+    uint32_t total_log2 = 0;
+    while ((uint64_t(1) << total_log2) < brick_count) {
+        ++total_log2;
     }
-    x = std::min(x, limit);
-    const uint64_t rows = (n + x - 1) / x;
-    uint64_t y = 1;
-    while (y * y < rows) {
-        ++y;
+    if (brick_count == 0 || PK_BRICK_SIZE > max_image_dimension_3d || total_log2 > 3 * limit_log2) {
+        return makeError(ErrorCode::OutOfRange, std::to_string(brick_count) +
+                                                    " bricks do not fit a brick atlas of at most " +
+                                                    std::to_string(1u << limit_log2) +
+                                                    " slots per axis (maxImageDimension3D " +
+                                                    std::to_string(max_image_dimension_3d) + ")");
     }
-    y = std::min(y, limit);
-    const uint64_t z = (n + x * y - 1) / (x * y);
-    return glm::uvec3(uint32_t(x), uint32_t(y), uint32_t(z));
+    // The exponent split as evenly as possible, x taking the remainder first.
+    const uint32_t z = total_log2 / 3;
+    const uint32_t y = (total_log2 - z) / 2;
+    const uint32_t x = total_log2 - z - y;
+    return glm::uvec3(1u << x, 1u << y, 1u << z);
 }
 
 glm::uvec3 brickAtlasSlot(uint32_t index, glm::uvec3 atlas_slots) {

@@ -169,3 +169,29 @@ TEST(GpuLayout, CpuNormalOffsetIsTheOffsetPoint) {
 }
 
 } // namespace
+
+TEST(GpuLayout, BrickAtlasSlotsArePowersOfTwoThatHoldEveryBrick) {
+    for (size_t bricks : {size_t(1), size_t(2), size_t(7), size_t(18), size_t(64), size_t(65),
+                          size_t(1000), size_t(262144)}) {
+        const Result<glm::uvec3> a = runtime::brickAtlasSlots(bricks, 2048);
+        ASSERT_TRUE(a.ok()) << a.error().message;
+        const glm::uvec3 s = a.value();
+        const size_t slots = size_t(s.x) * s.y * s.z;
+        EXPECT_GE(slots, bricks);
+        EXPECT_LT(slots, 2 * bricks + 1) << bricks << " bricks";
+        for (int axis = 0; axis < 3; ++axis) {
+            EXPECT_EQ(s[axis] & (s[axis] - 1), 0u) << "not a power of two";
+            EXPECT_LE(s[axis] * PK_BRICK_SIZE, 2048u);
+        }
+        EXPECT_TRUE(s.x >= s.y && s.y >= s.z && s.x <= 2 * s.z) << s.x << "x" << s.y << "x" << s.z;
+    }
+    EXPECT_EQ(runtime::brickAtlasSlots(18, 2048).value(), glm::uvec3(4, 4, 2));
+    // The device limit: 16 texels per axis hold 4 x 4 x 4 slots, not 65.
+    EXPECT_EQ(runtime::brickAtlasSlots(64, 16).value(), glm::uvec3(4));
+    EXPECT_EQ(runtime::brickAtlasSlots(65, 16).error().code, ErrorCode::OutOfRange);
+    EXPECT_EQ(runtime::brickAtlasSlots(0, 2048).error().code, ErrorCode::OutOfRange);
+    // Slots are filled x fastest, then y, then z.
+    EXPECT_EQ(runtime::brickAtlasSlot(0, {4, 2, 2}), glm::uvec3(0, 0, 0));
+    EXPECT_EQ(runtime::brickAtlasSlot(5, {4, 2, 2}), glm::uvec3(1, 1, 0));
+    EXPECT_EQ(runtime::brickAtlasSlot(13, {4, 2, 2}), glm::uvec3(1, 1, 1));
+}

@@ -13,6 +13,7 @@
 #include <glm/geometric.hpp>
 #include <glm/gtc/quaternion.hpp>
 
+#include "bricked_test_volume.hpp"
 #include "gpu_test_support.hpp"
 #include "probekit/runtime/gpu_volumes.hpp"
 #include "probekit/runtime/point_sampler.hpp"
@@ -601,6 +602,171 @@ TEST_F(GpuSampler, RejectsBadInput) {
     // A failed call changes nothing.
     compareWithCpu(context(), gpu.value(), VolumeSet(volumes), samplePoints(volumes, 2000, 9),
                    kFloatRelative, 0.0f, "after_rejections");
+}
+
+} // namespace
+
+// ---- Bricked volumes: indirection + brick atlas against the CPU sampler's steps B1-B4 ----
+
+namespace {
+
+// Tolerances: the dense ones (kFloatRelative, kHalfRelative), for the same reasons: both sides
+// filter the same stored texels, in float on lavapipe. The atlas adds the rounding of a
+// normalised coordinate over 4 A texels (A <= 8 slots per axis here: <= 2e-6 texel) and, on a
+// brick or level border, the two sides may pick different bricks for one point; the volumes are
+// stitched (brick::stitchBorders) before storage, so the bricks agree there to within float
+// rounding. Half storage rounds the stitched border probes and the coarse probes they were
+// interpolated from separately: the two bricks then differ by up to 2^-11 of the *coefficients*,
+// which where irradiance cancels (E ~ 0.1 from coefficients ~ 1) exceeds 2e-3 of E (measured
+// 3.2e-3). So border points are tested where both sides pick the same brick: on half volumes
+// only with an identity frame (points snapped exactly onto a face in local coordinates).
+struct BrickedCase {
+    std::string name;
+    std::vector<Volume> volumes;
+    bool borderPoints = true;
+};
+
+struct BrickedSpec {
+    grid::Aabb bounds{glm::vec3(-2.0f, 0.0f, -2.0f), glm::vec3(2.0f, 2.0f, 2.0f)};
+    glm::uvec3 top{2, 1, 2};
+    brick::BrickLayout layout = bricktest::mixedLayout(glm::uvec3(2, 1, 2));
+    grid::RigidFrame frame{};
+    sh::Order order = sh::Order::L2;
+    Storage storage = Storage::Float32;
+    int32_t priority = 0;
+    float fade = 0.0f;
+};
+
+Volume makeBricked(const BrickedSpec& spec, const ProbeFunction& field) {
+    VolumeDesc desc;
+    desc.name = "bricked";
+    desc.grid = grid::GridLayout(spec.bounds, spec.top, grid::PositionMode::Center, spec.frame);
+    desc.layout = VolumeLayout::Bricked;
+    desc.bricks = spec.layout;
+    desc.shOrder = spec.order;
+    desc.storage = spec.storage;
+    desc.blendPriority = spec.priority;
+    desc.fadeDistance = spec.fade;
+    return bricktest::makeBrickedVolume(desc, field, true);
+}
+
+// Points exactly on finest-cell faces of the bricked volumes (so on every brick and level
+// border, and on faces inside bricks), and on their edges and corners, with random normals.
+std::vector<Sample> brickBorderPoints(const std::vector<Volume>& volumes, size_t count,
+                                      uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    std::vector<Sample> samples;
+    for (const Volume& v : volumes) {
+        if (v.desc.layout != VolumeLayout::Bricked) {
+            continue;
+        }
+        const glm::uvec3 cells =
+            brick::finestCells(v.desc.grid.resolution(), v.desc.bricks.maxLevel);
+        const grid::Aabb& box = v.desc.grid.bounds();
+        for (size_t i = 0; i < count; ++i) {
+            glm::vec3 t(unit(rng), unit(rng), unit(rng));
+            // One, two or three axes snapped to a cell face: faces, edges, corners.
+            for (int axis = 0; axis < 1 + int(i % 3); ++axis) {
+                const int a = (axis + int(i / 3)) % 3;
+                t[a] = std::round(t[a] * float(cells[a])) / float(cells[a]);
+            }
+            samples.push_back(
+                {v.desc.grid.frame().toWorld(box.min + t * box.size()), randomUnit(rng)});
+        }
+    }
+    return samples;
+}
+
+std::vector<BrickedCase> brickedCases() {
+    std::vector<BrickedCase> out;
+    BrickedSpec uniform;
+    uniform.top = glm::uvec3(4, 2, 4);
+    uniform.layout = brick::uniformLayout(uniform.top, 1);
+    out.push_back({"bricked_uniform_l2_float", {makeBricked(uniform, kFieldA)}});
+
+    BrickedSpec mixed;
+    out.push_back({"bricked_mixed_l2_float", {makeBricked(mixed, kFieldA)}});
+    mixed.storage = Storage::Float16;
+    out.push_back({"bricked_mixed_l2_half", {makeBricked(mixed, kFieldB)}});
+
+    BrickedSpec rotated_l1 = mixed;
+    rotated_l1.order = sh::Order::L1;
+    rotated_l1.storage = Storage::Float32;
+    rotated_l1.frame = rotated(35.0f, {1.0f, 2.0f, 0.5f}, {0.3f, -0.2f, 0.1f});
+    out.push_back({"bricked_mixed_l1_rotated_float", {makeBricked(rotated_l1, kFieldC)}});
+    rotated_l1.storage = Storage::Float16;
+    out.push_back({"bricked_mixed_l1_rotated_half", {makeBricked(rotated_l1, kFieldC)}, false});
+
+    // A bricked volume with a fade over a dense one of lower priority, under a small dense one
+    // of higher priority.
+    VolumeSpec dense = cases()[0].specs[0];
+    dense.bounds = {glm::vec3(-3.0f, -0.5f, -3.0f), glm::vec3(3.0f, 2.5f, 3.0f)};
+    VolumeSpec small = cases()[5].specs[2];
+    small.priority = 3;
+    BrickedSpec over = mixed;
+    over.priority = 1;
+    over.fade = 0.3f;
+    over.frame = rotated(-20.0f, {0.0f, 1.0f, 0.2f}, {0.2f, 0.1f, -0.1f});
+    out.push_back({"bricked_over_dense",
+                   {makeTestVolume(dense, kFieldB), makeBricked(over, kFieldA),
+                    makeTestVolume(small, kFieldC)}});
+    return out;
+}
+
+TEST_F(GpuSampler, BrickedMatchesCpuSampler) {
+    float worst = 0.0f;
+    for (const BrickedCase& c : brickedCases()) {
+        Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), c.volumes);
+        ASSERT_TRUE(gpu.ok()) << c.name << ": " << gpu.error().message;
+        std::vector<Sample> samples = samplePoints(c.volumes, kPointsPerCase, 41);
+        if (c.borderPoints) {
+            const std::vector<Sample> borders =
+                brickBorderPoints(c.volumes, kPointsPerCase / 2, 43);
+            samples.insert(samples.end(), borders.begin(), borders.end());
+        }
+        const Comparison result = compareWithCpu(context(), gpu.value(), VolumeSet(c.volumes),
+                                                 samples, relativeFor(c.volumes), 0.0f, c.name);
+        worst = std::max(worst, result.maxRelative);
+    }
+    std::printf("[ figures  ] bricked: worst max |GPU - CPU| / scale over all cases = %.3g\n",
+                double(worst));
+}
+
+TEST_F(GpuSampler, BrickedReplaceAndSecondState) {
+    // Dense -> bricked -> a bricked layout of another size: each replacement reallocates.
+    const std::vector<Volume> initial = buildVolumes(cases()[0].specs);
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), initial);
+    ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+    BrickedSpec mixed;
+    const Volume first = makeBricked(mixed, kFieldA);
+    ASSERT_TRUE(gpu.value().replaceVolume(0, first).ok());
+    compareWithCpu(context(), gpu.value(), VolumeSet({first}), samplePoints({first}, 3000, 13),
+                   kFloatRelative, 0.0f, "bricked_replaced_dense");
+    BrickedSpec bigger;
+    bigger.top = glm::uvec3(4, 2, 4);
+    bigger.layout = bricktest::mixedLayout(bigger.top);
+    const Volume second = makeBricked(bigger, kFieldB);
+    ASSERT_TRUE(gpu.value().replaceVolume(0, second).ok());
+    compareWithCpu(context(), gpu.value(), VolumeSet({second}), samplePoints({second}, 3000, 17),
+                   kFloatRelative, 0.0f, "bricked_replaced_bricked");
+
+    // A second state with the same layout blends on the GPU; at factor 1 it is state b.
+    const Volume state_b = makeBricked(bigger, kFieldC);
+    ASSERT_TRUE(gpu.value().replaceVolume(0, state_b, runtime::VolumeState::Secondary).ok());
+    gpu.value().setStateBlend(0, 1.0f);
+    compareWithCpu(context(), gpu.value(), VolumeSet({state_b}), samplePoints({state_b}, 3000, 19),
+                   kFloatRelative, 0.0f, "bricked_second_state");
+
+    // With a second state the layout stays; a box update means nothing in an atlas.
+    const Result<void> relayout = gpu.value().replaceVolume(0, first);
+    ASSERT_FALSE(relayout.ok());
+    EXPECT_NE(relayout.error().message.find("second state"), std::string::npos)
+        << relayout.error().message;
+    const Result<void> box = gpu.value().updateBox(0, state_b, glm::uvec3(0), glm::uvec3(1));
+    ASSERT_FALSE(box.ok());
+    EXPECT_EQ(box.error().code, ErrorCode::InvalidArgument);
+    EXPECT_NE(box.error().message.find("dense volumes only"), std::string::npos);
 }
 
 } // namespace
