@@ -35,7 +35,8 @@ using uvec4 = glm::uvec4;
 #define PK_LIGHT_DIRECTIONAL 2u
 
 // The G-buffer id attachment (R32_UINT): bits 0..1 kind, bit 2 probe validity, bits 3..5 volume
-// slot, bits 8..31 probe grid coordinates x | y << 8 | z << 16 (each < 256).
+// slot, bits 8..31 the probe: dense volumes grid coordinates x | y << 8 | z << 16 (each < 256);
+// bricked volumes the probe index brick * 64 + k (< 2^24), with the brick's level in bits 6..7.
 #define PK_KIND_NONE 0u
 #define PK_KIND_SURFACE 1u
 #define PK_KIND_PROBE 2u

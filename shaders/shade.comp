@@ -79,10 +79,18 @@ void main() {
     if (kind == PK_KIND_PROBE) {
         const bool valid = ((id >> 2u) & 1u) != 0u;
         const uint slot = (id >> 3u) & 7u;
-        const uvec3 probe = uvec3((id >> 8u) & 255u, (id >> 16u) & 255u, id >> 24u);
-        if (view == PK_VIEW_VALIDITY && !valid) {
-            // Flat red with a little view-dependent shading so spheres still read as spheres.
-            const float facing = max(dot(n, normalize(pk_frame.eye.xyz - position)), 0.0);
+        const bool bricked = pk_is_bricked(slot);
+        // Bricked: (brick, probe in the brick, 0), as pk_probe_irradiance takes it.
+        const uvec3 probe = bricked ? uvec3(id >> 14u, (id >> 8u) & 63u, 0u)
+                                    : uvec3((id >> 8u) & 255u, (id >> 16u) & 255u, id >> 24u);
+        // Flat colours get a little view-dependent shading so spheres still read as spheres.
+        const float facing = max(dot(n, normalize(pk_frame.eye.xyz - position)), 0.0);
+        if (view == PK_VIEW_PROBES && bricked) {
+            // The brick's level (legend in renderer.hpp): 0 blue, 1 green, 2 yellow, 3 magenta.
+            const vec3 level_colors[4] = vec3[4](vec3(0.15, 0.35, 1.0), vec3(0.15, 0.85, 0.25),
+                                                 vec3(1.0, 0.85, 0.1), vec3(0.95, 0.2, 0.9));
+            color = level_colors[(id >> 6u) & 3u] * (0.3 + 0.7 * facing);
+        } else if (view == PK_VIEW_VALIDITY && !valid) {
             color = vec3(1.0, 0.05, 0.05) * (0.3 + 0.7 * facing);
         } else {
             // A white Lambertian sphere lit by the probe's own SH: radiance E / pi.

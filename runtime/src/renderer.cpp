@@ -504,12 +504,57 @@ Result<void> Renderer::Impl::createPipelines() {
     return {};
 }
 
+namespace {
+
+// The probe spheres of a bricked volume (render_layout.h's bricked id): brick probe k at its
+// lattice position, radius 0.15 x the brick's probe spacing unless `fixed_radius` > 0.
+Result<void> appendBrickInstances(const VolumeDesc& desc, const std::vector<uint8_t>& validity,
+                                  uint32_t slot, float fixed_radius,
+                                  std::vector<ProbeInstance>& list) {
+    const brick::BrickLayout& layout = desc.bricks;
+    if (desc.probeCount() >= (size_t(1) << 24)) {
+        return makeError(ErrorCode::OutOfRange,
+                         "renderer: volume \"" + desc.name + "\" has " +
+                             std::to_string(desc.probeCount()) +
+                             " probes; the probe views show at most 2^24 per bricked volume");
+    }
+    const grid::Aabb& box = desc.grid.bounds();
+    const glm::uvec3 cells = brick::finestCells(desc.grid.resolution(), layout.maxLevel);
+    // Lattice step (finest level): a finest cell holds 3 probe intervals.
+    const glm::vec3 lattice_step = box.size() / (3.0f * glm::vec3(cells));
+    for (size_t b = 0; b < layout.bricks.size(); ++b) {
+        const brick::Brick& br = layout.bricks[b];
+        const glm::vec3 spacing = lattice_step * float(1u << (layout.maxLevel - br.level));
+        const float radius = fixed_radius > 0.0f
+                                 ? fixed_radius
+                                 : 0.15f * std::min(spacing.x, std::min(spacing.y, spacing.z));
+        for (uint32_t k = 0; k < brick::kBrickProbeCount; ++k) {
+            const size_t probe = b * brick::kBrickProbeCount + k;
+            const glm::uvec3 local(k % 4, (k / 4) % 4, k / 16);
+            const glm::vec3 at =
+                box.min + glm::vec3(brick::latticeCoord(br, local, layout.maxLevel)) * lattice_step;
+            const uint32_t valid = validity[probe] == kProbeValid ? 1u : 0u;
+            const uint32_t id = PK_KIND_PROBE | (valid << 2u) | (slot << 3u) |
+                                (uint32_t(br.level) << 6u) | (uint32_t(probe) << 8u);
+            list.push_back({glm::vec4(desc.grid.frame().toWorld(at), radius), id});
+        }
+    }
+    return {};
+}
+
+} // namespace
+
 Result<void> Renderer::Impl::writeInstances(const GpuVolumeSet& volumes,
                                             const FrameSettings& settings, uint32_t& count) {
     std::vector<ProbeInstance> list;
     for (size_t s = 0; s < volumes.size(); ++s) {
         const VolumeDesc& desc = volumes.desc(s);
         const grid::GridLayout& layout = desc.grid;
+        if (desc.layout == VolumeLayout::Bricked) {
+            PK_TRY(appendBrickInstances(desc, volumes.validity(s), uint32_t(s),
+                                        settings.probeRadius, list));
+            continue;
+        }
         const glm::vec3 spacing = layout.spacing();
         const float radius = settings.probeRadius > 0.0f
                                  ? settings.probeRadius

@@ -13,6 +13,7 @@
 #include <glm/ext/matrix_transform.hpp>
 #include <glm/geometric.hpp>
 
+#include "bricked_test_volume.hpp"
 #include "gpu_test_support.hpp"
 #include "probekit/baker/generators.hpp"
 #include "probekit/baker/scene.hpp"
@@ -435,6 +436,71 @@ TEST_F(Renderer, ProbeSpheresShowTheirOwnShAndValidity) {
     }
     EXPECT_GT(checked, size_t(20));
     EXPECT_GT(invalid_seen, size_t(2));
+}
+
+TEST_F(Renderer, BrickedProbeSpheresShowTheirLevelAndOwnSh) {
+    // Mixed levels 0..2: the probes view colours each sphere by its brick's level (renderer.hpp
+    // legend), the validity view lights valid ones by their own SH, read from the brick atlas.
+    VolumeDesc desc;
+    desc.name = "bricked";
+    desc.grid = grid::GridLayout({glm::vec3(-1.0f), glm::vec3(1.0f)}, glm::uvec3(2, 1, 2),
+                                 grid::PositionMode::Center, {});
+    desc.layout = VolumeLayout::Bricked;
+    desc.bricks = bricktest::mixedLayout(glm::uvec3(2, 1, 2));
+    const Volume volume = bricktest::makeBrickedVolume(
+        desc, skyAndLight({0.3f, 0.4f, 0.6f}, {0.3f, 1.6f, -0.4f}, 3.0f), true);
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), std::vector<Volume>{volume});
+    ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+    ASSERT_TRUE(renderer().setMeshes({}, {}).ok());
+
+    FrameSettings settings;
+    settings.width = 320;
+    settings.height = 320;
+    settings.camera.eye = glm::vec3(-2.5f, 2.0f, -3.5f);
+    settings.camera.target = glm::vec3(0.0f);
+    settings.view = RenderView::Probes;
+    settings.readbackGBuffer = true;
+    Result<Frame> probes = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(probes.ok()) << probes.error().message;
+    settings.view = RenderView::Validity;
+    Result<Frame> lit = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(lit.ok()) << lit.error().message;
+
+    // The dominant channels of each level's colour: 0 blue, 1 green, 2 red and green (yellow).
+    size_t seen[3] = {0, 0, 0};
+    for (size_t b = 0; b < desc.bricks.bricks.size(); ++b) {
+        const brick::Brick& br = desc.bricks.bricks[b];
+        const float spacing = 2.0f / 6.0f / float(1u << br.level);
+        for (uint32_t k = 0; k < brick::kBrickProbeCount; ++k) {
+            const glm::vec3 center = bricktest::probeLocal(desc, br, k);
+            const glm::ivec2 px = project(settings, center);
+            const size_t at = size_t(px.x) + size_t(settings.width) * size_t(px.y);
+            const glm::vec4 position = probes.value().position[at];
+            // Only probes whose own sphere is visible at their centre pixel.
+            if (position.w == 0.0f || glm::length(glm::vec3(position) - center) > 0.16f * spacing) {
+                continue;
+            }
+            const glm::vec3 c(probes.value().color[at]);
+            const std::string where = "brick " + std::to_string(b) + " probe " + std::to_string(k);
+            if (br.level == 0) {
+                EXPECT_TRUE(c.z > 2.0f * c.x && c.z > 2.0f * c.y) << where;
+            } else if (br.level == 1) {
+                EXPECT_TRUE(c.y > 2.0f * c.x && c.y > 2.0f * c.z) << where;
+            } else {
+                EXPECT_TRUE(c.x > 2.0f * c.z && c.y > 2.0f * c.z) << where;
+            }
+            ++seen[br.level];
+            const glm::vec3 n = glm::normalize(glm::vec3(lit.value().normal[at]));
+            const size_t probe = b * brick::kBrickProbeCount + k;
+            const glm::vec3 want = sh::irradiance(volume.probe(probe), desc.shOrder, n) / sh::kPi;
+            EXPECT_LE(maxAbs(glm::vec3(lit.value().color[at]) - want),
+                      kIrradianceRelative * maxAbs(want))
+                << where;
+        }
+    }
+    EXPECT_GT(seen[0], size_t(10));
+    EXPECT_GT(seen[1], size_t(10));
+    EXPECT_GT(seen[2], size_t(10));
 }
 
 TEST_F(Renderer, DynamicUpdatesShowInTheNextFrameOnly) {

@@ -393,7 +393,8 @@ void addRenderCommand(CLI::App& app, Command& selected) {
         ->capture_default_str();
     cmd->add_option("--view", o->view,
                     "shaded (albedo/pi x E + emission), irradiance (E, W/m^2), probes (spheres "
-                    "lit by their own SH), validity (invalid probes red)")
+                    "lit by their own SH; for bricked volumes flat spheres coloured by brick "
+                    "level: 0 blue, 1 green, 2 yellow, 3 magenta), validity (invalid probes red)")
         ->check(CLI::IsMember({"shaded", "irradiance", "probes", "validity"}))
         ->capture_default_str();
     cmd->add_option("--exposure", o->exposure, "scale by 2^EV before writing")

@@ -57,7 +57,10 @@ Camera frameBounds(const grid::Aabb& bounds, float vertical_fov_deg, float aspec
 enum class RenderView : uint32_t {
     Shaded = 0,     // albedo / pi x (E + direct light when asked) + emission
     Irradiance = 1, // E itself
-    Probes = 2,     // Shaded, plus each probe as a sphere lit by its own SH (white albedo)
+    Probes = 2,     // Shaded, plus each probe as a sphere lit by its own SH (white albedo);
+                    // bricked volumes' probes are flat spheres coloured by their brick's
+                    // level: 0 blue, 1 green, 2 yellow, 3 magenta (radius 0.15 x that
+                    // brick's probe spacing), so the adaptive refinement shows
     Validity = 3,   // probe spheres only (none hidden by walls): valid ones lit by their SH,
                     // invalid ones flat red
 };
