@@ -24,10 +24,9 @@ struct Node {
     Brick brick;
     int parent = -1;
     int firstChild = -1;    // children are 8 consecutive nodes (x fastest)
-    float predicted = 0.0f; // predicted disagreement before testing
-    float measured = -1.0f; // largest disagreement at the finer probes; < 0 = not tested
-    float measuredRms = 0.0f;
-    float octant[8] = {}; // largest disagreement on each child's region
+    float predicted = 0.0f; // predicted interpolation error before testing
+    // RMS disagreement at the finer probes, noise taken out; < 0 = not tested.
+    float measured = -1.0f;
 };
 
 // The baked probes, one per lattice point of the finest level (3 * finest cells + 1 points per
@@ -119,30 +118,55 @@ std::vector<glm::uvec3> regionPoints(const Brick& b, uint32_t max_level, uint32_
     return out;
 }
 
-// Largest |E_a(n) - E_b(n)| over the six axis normals and the three channels.
-float irradianceDifference(const sh::ShRgb& a, const sh::ShRgb& b, sh::Order order) {
+// Mean over the six axis normals and the three channels of (E_a(n) - E_b(n))^2.
+double squaredDifference(const sh::ShRgb& a, const sh::ShRgb& b, sh::Order order) {
     sh::ShRgb d = b;
     d *= -1.0f;
     d += a;
-    float worst = 0.0f;
+    double sum = 0.0;
     for (const glm::vec3& n : kAxisNormals) {
-        const glm::vec3 e = glm::abs(sh::irradiance(d, order, n));
-        worst = std::max({worst, e.x, e.y, e.z});
+        const glm::vec3 e = sh::irradiance(d, order, n);
+        sum += double(glm::dot(e, e));
     }
-    return worst;
+    return sum / 18.0;
 }
 
+// Sum of squared trilinear weights at brick-local coordinates: how much of one probe's noise
+// variance reaches the interpolated value.
+double squaredWeightSum(glm::vec3 local) {
+    double product = 1.0;
+    for (int a = 0; a < 3; ++a) {
+        const double t = double(local[a]) - std::floor(double(local[a]));
+        product *= (1.0 - t) * (1.0 - t) + t * t;
+    }
+    return product;
+}
+
+// Accumulates squared disagreements minus what Monte Carlo noise alone would give.
+struct ErrorSum {
+    double excess = 0.0;
+    size_t count = 0;
+    void add(double squared_error, double squared_noise) {
+        excess += squared_error - squared_noise;
+        ++count;
+    }
+    // RMS interpolation error with the noise taken out (0 when noise explains it all).
+    float rms() const {
+        return count ? float(std::sqrt(std::max(0.0, excess / double(count)))) : 0.0f;
+    }
+};
+
 struct Disagreement {
-    float max = 0.0f;
     float rms = 0.0f;
     float octant[8] = {};
 };
 
-// Compares the brick's trilinear interpolation with baked values at `sub` points per brick
-// spacing. Points inside geometry, or whose interpolation reads a probe inside geometry, are
-// skipped: their values are dilated, not lit.
-Disagreement measure(const Lattice& lattice, const Brick& b, uint32_t max_level, uint32_t sub,
-                     sh::Order order, float scale) {
+// Compares the brick's trilinear interpolation with baked values at the finer lattice points
+// of its region (those that are not its own probes). Points inside geometry, or whose
+// interpolation reads a probe inside geometry, are skipped: their values are dilated, not lit.
+// `noise2` is the relative noise variance of one probe's irradiance (see bakeBricked).
+Disagreement measure(const Lattice& lattice, const Brick& b, uint32_t max_level, sh::Order order,
+                     float scale, double noise2) {
     std::vector<sh::ShRgb> own(kBrickProbeCount);
     std::vector<uint8_t> own_valid(kBrickProbeCount);
     const std::vector<glm::uvec3> own_points = regionPoints(b, max_level, 1);
@@ -150,19 +174,21 @@ Disagreement measure(const Lattice& lattice, const Brick& b, uint32_t max_level,
         own[k] = lattice.sh(own_points[k]);
         own_valid[k] = lattice.valid(own_points[k]);
     }
-    const uint32_t n = kBrickCells * sub + 1;
-    const std::vector<glm::uvec3> points = regionPoints(b, max_level, sub);
-    Disagreement d;
-    double sum2 = 0.0;
-    size_t count = 0;
+    constexpr uint32_t kSub = 2;
+    constexpr uint32_t n = kBrickCells * kSub + 1;
+    const std::vector<glm::uvec3> points = regionPoints(b, max_level, kSub);
+    ErrorSum total;
+    ErrorSum octants[8];
+    const double inv_scale2 = 1.0 / (double(scale) * scale);
     for (uint32_t z = 0; z < n; ++z) {
         for (uint32_t y = 0; y < n; ++y) {
             for (uint32_t x = 0; x < n; ++x) {
+                const glm::uvec3 q(x, y, z);
                 const glm::uvec3 u = points[x + n * (y + n * z)];
-                if (!lattice.has(u) || !lattice.valid(u)) {
-                    continue;
+                if ((x % kSub) + (y % kSub) + (z % kSub) == 0 || !lattice.valid(u)) {
+                    continue; // one of the brick's own probes, or inside geometry
                 }
-                const glm::vec3 local = glm::vec3(x, y, z) / float(sub);
+                const glm::vec3 local = glm::vec3(q) / float(kSub);
                 bool corners_valid = true;
                 const glm::uvec3 lo = glm::min(glm::uvec3(local), glm::uvec3(kBrickCells - 1));
                 for (uint32_t c = 0; c < 8; ++c) {
@@ -172,29 +198,31 @@ Disagreement measure(const Lattice& lattice, const Brick& b, uint32_t max_level,
                 if (!corners_valid) {
                     continue;
                 }
-                const float e =
-                    irradianceDifference(brick::interpolate(own, local), lattice.sh(u), order) /
-                    scale;
-                d.max = std::max(d.max, e);
-                sum2 += double(e) * e;
-                ++count;
+                const double e2 =
+                    squaredDifference(brick::interpolate(own, local), lattice.sh(u), order) *
+                    inv_scale2;
+                const double expected_noise = noise2 * (1.0 + squaredWeightSum(local));
+                total.add(e2, expected_noise);
                 // Octants: the child regions the point belongs to (border points to several).
-                const uint32_t half = n / 2; // points 0..half in the low child, half..n-1 high
+                constexpr uint32_t half = n / 2; // 0..half in the low child, half..n-1 high
                 for (uint32_t o = 0; o < 8; ++o) {
                     const glm::uvec3 hi(o & 1, (o >> 1) & 1, o >> 2);
-                    const glm::uvec3 q(x, y, z);
                     bool inside = true;
                     for (int a = 0; a < 3; ++a) {
                         inside &= hi[a] ? q[a] >= half : q[a] <= half;
                     }
                     if (inside) {
-                        d.octant[o] = std::max(d.octant[o], e);
+                        octants[o].add(e2, expected_noise);
                     }
                 }
             }
         }
     }
-    d.rms = count ? float(std::sqrt(sum2 / double(count))) : 0.0f;
+    Disagreement d;
+    d.rms = total.rms();
+    for (int o = 0; o < 8; ++o) {
+        d.octant[o] = octants[o].rms();
+    }
     return d;
 }
 
@@ -360,37 +388,66 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
     lattice.ensure(wanted);
     const float scale = irradianceScale(lattice, wanted, order);
 
-    // Level-0 prediction: how far the brick's probes stray from its corners' interpolation.
+    // Monte Carlo noise: a second, independent bake of up to kNoiseProbes valid level-0 probes
+    // (ids with the top bit set seed other sample sequences). Half the mean squared difference
+    // of the two estimates is one estimate's noise variance.
+    double noise2 = 0.0;
+    {
+        constexpr size_t kNoiseProbes = 64;
+        std::vector<glm::uvec3> valid_points;
+        for (const glm::uvec3& u : wanted) {
+            if (lattice.valid(u)) {
+                valid_points.push_back(u);
+            }
+        }
+        std::sort(valid_points.begin(), valid_points.end(),
+                  [&](glm::uvec3 x, glm::uvec3 y) { return lattice.key(x) < lattice.key(y); });
+        valid_points.erase(std::unique(valid_points.begin(), valid_points.end()),
+                           valid_points.end());
+        const size_t stride = std::max<size_t>(1, valid_points.size() / kNoiseProbes);
+        std::vector<glm::vec3> positions;
+        std::vector<uint64_t> ids;
+        std::vector<glm::uvec3> picked;
+        for (size_t i = 0; i < valid_points.size() && picked.size() < kNoiseProbes; i += stride) {
+            picked.push_back(valid_points[i]);
+            positions.push_back(lattice.world(valid_points[i]));
+            ids.push_back(lattice.key(valid_points[i]) | (uint64_t(1) << 63));
+        }
+        std::vector<sh::ShRgb> again(picked.size());
+        std::vector<uint8_t> again_valid(picked.size());
+        bake_batch(positions, ids, again, again_valid);
+        double sum = 0.0;
+        for (size_t i = 0; i < picked.size(); ++i) {
+            sum += squaredDifference(again[i], lattice.sh(picked[i]), order);
+        }
+        noise2 = picked.empty() ? 0.0 : 0.5 * sum / double(picked.size()) / (double(scale) * scale);
+    }
+
+    // Level-0 prediction: how far the brick's probes stray from its 8 corners' interpolation
+    // (noise taken out), scaled by (1/3)^2 for the brick's own 3x finer spacing.
     for (Node& n : nodes) {
         const auto pts = regionPoints(n.brick, max_level, 1);
-        std::vector<sh::ShRgb> corners(kBrickProbeCount);
+        std::vector<sh::ShRgb> corner_brick(kBrickProbeCount);
+        for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
+            // A brick whose probes are its corners' values spread over 0..3: interpolating it
+            // at local / 3 is the corner lattice's interpolation.
+            const glm::uvec3 l(k % 4, (k / 4) % 4, k / 16);
+            const glm::uvec3 c = glm::min(l, glm::uvec3(1)) * 3u;
+            corner_brick[k] = lattice.sh(pts[c.x + 4 * (c.y + 4 * c.z)]);
+        }
+        ErrorSum sum;
         for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
             const glm::uvec3 l(k % 4, (k / 4) % 4, k / 16);
-            const glm::uvec3 c = glm::uvec3(glm::greaterThanEqual(l, glm::uvec3(2))) * 3u;
-            corners[k] = lattice.sh(pts[c.x + 4 * (c.y + 4 * c.z)]);
-        }
-        float worst = 0.0f;
-        for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
-            if (!lattice.valid(pts[k])) {
+            if (!lattice.valid(pts[k]) || glm::all(glm::equal(l % 3u, glm::uvec3(0)))) {
                 continue;
             }
-            const glm::vec3 local = glm::vec3(k % 4, (k / 4) % 4, k / 16) / 3.0f;
-            // Interpolate the 2x2x2 corner lattice (corners[] at local 0 and 3 only).
-            sh::ShRgb value;
-            for (uint32_t c = 0; c < 8; ++c) {
-                const glm::uvec3 hi(c & 1, (c >> 1) & 1, c >> 2);
-                float w = 1.0f;
-                for (int a = 0; a < 3; ++a) {
-                    w *= hi[a] ? local[a] : 1.0f - local[a];
-                }
-                const glm::uvec3 p = hi * 3u;
-                sh::ShRgb term = corners[p.x + 4 * (p.y + 4 * p.z)];
-                term *= w;
-                value += term;
-            }
-            worst = std::max(worst, irradianceDifference(value, lattice.sh(pts[k]), order) / scale);
+            const glm::vec3 t = glm::vec3(l) / 3.0f; // position in the corner lattice
+            const double e2 =
+                squaredDifference(brick::interpolate(corner_brick, t), lattice.sh(pts[k]), order) /
+                (double(scale) * scale);
+            sum.add(e2, noise2 * (1.0 + squaredWeightSum(t)));
         }
-        n.predicted = worst / 4.0f;
+        n.predicted = sum.rms() / 9.0f;
     }
 
     BrickedOutcome out;
@@ -420,11 +477,9 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
         std::vector<int> next;
         for (int i : candidates) {
             const Disagreement d =
-                measure(lattice, nodes[size_t(i)].brick, max_level, 2, order, scale);
-            nodes[size_t(i)].measured = d.max;
-            nodes[size_t(i)].measuredRms = d.rms;
-            std::copy(std::begin(d.octant), std::end(d.octant), nodes[size_t(i)].octant);
-            if (d.max <= threshold) {
+                measure(lattice, nodes[size_t(i)].brick, max_level, order, scale, noise2);
+            nodes[size_t(i)].measured = d.rms;
+            if (d.rms <= threshold) {
                 continue;
             }
             nodes[size_t(i)].firstChild = int(nodes.size());
@@ -526,12 +581,14 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
     double sum_w = 0.0, sum_e2 = 0.0;
     for (int i : leaf_nodes) {
         const Node& n = nodes[size_t(i)];
-        const double e = n.measured >= 0.0f ? n.measuredRms : n.predicted;
+        const double e = n.measured >= 0.0f ? n.measured : n.predicted;
         const double w = std::ldexp(1.0, -3 * int(n.brick.level));
         sum_w += w;
         sum_e2 += w * e * e;
     }
     out.predictedError = sum_w > 0.0 ? std::sqrt(sum_e2 / sum_w) : 0.0;
+    out.noise = float(std::sqrt(noise2));
+    out.noise = float(std::sqrt(noise2));
 
     // Re-express every leaf on the lattice of the deepest level actually used.
     const uint32_t used_level = deepest();

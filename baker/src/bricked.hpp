@@ -36,21 +36,26 @@ struct BrickedOutcome {
     uint64_t budgetDropped = 0;
     double budgetError = 0.0;
     double predictedError = 0.0; // RMS interpolation error, fraction of RMS irradiance
+    float noise = 0.0f;          // one probe's RMS Monte Carlo noise, same units
     uint64_t invalidProbes = 0;  // lattice points inside geometry among those written
     std::vector<std::string> warnings;
 };
 
+// Error measure: irradiance at the six axis normals, every channel, relative to the volume's
+// RMS irradiance (over its valid level-0 probes), RMS over points. Monte Carlo noise is
+// measured by baking up to 64 level-0 probes a second time with independent samples, and the
+// noise's expected share is subtracted from every squared disagreement.
 // Refinement rule (one level at a time, starting from every level-0 brick):
 //  * a brick is a candidate when geometry lies within its reach (a triangle's bounding box
 //    overlaps the brick's region grown by one of its probe spacings) or when its predicted
-//    disagreement exceeds refineError, and it has at least one probe outside geometry;
+//    interpolation error exceeds refineError, and it has at least one probe outside geometry;
 //  * a candidate's finer probes (the next level's lattice over its region) are baked for real
-//    and compared with the candidate's trilinear interpolation at them (irradiance at the six
-//    axis normals, every channel, relative to the volume's RMS irradiance): the candidate is
-//    split when the largest disagreement exceeds refineError;
-//  * the predicted disagreement of a brick is a quarter of what was measured on its region one
-//    level up (trilinear error falls with the square of the spacing); on level 0 it is a
-//    quarter of how far the brick's own probes stray from the interpolation of its 8 corners.
+//    and compared with the candidate's trilinear interpolation at them: the candidate is split
+//    when the RMS disagreement exceeds refineError (no cheap pre-pass: the test is the real
+//    bake of one level more, and its cost is part of the bake);
+//  * the predicted error of a brick is a quarter of what was measured on its region one level
+//    up (trilinear error falls with the square of the spacing); on level 0 it is a ninth of
+//    how far the brick's own probes stray from the interpolation of its 8 corners.
 // The budget then merges the splits whose disagreement is smallest until the GPU bytes fit.
 Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, sh::Order order,
                                    const BrickedSettings& settings, const ProbeBatchFn& bake_batch);
