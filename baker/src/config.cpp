@@ -448,7 +448,7 @@ LpvConfig parseLpv(const Reader& r, const Json& j, const std::string& path) {
 BakeConfig parseTop(const Reader& r, const Json& j, const std::filesystem::path& base_dir) {
     r.checkKeys(j, "",
                 {"method", "seed", "path", "vpl", "lpv", "environment", "volumes", "validity",
-                 "max_memory_mb"});
+                 "max_memory_mb", "target_error"});
     BakeConfig c;
     if (j.contains("method")) {
         c.method = r.choice(j["method"], "method", {"path", "vpl", "lpv"});
@@ -492,6 +492,13 @@ BakeConfig parseTop(const Reader& r, const Json& j, const std::filesystem::path&
             }
             c.dilate = v["dilate"].get<bool>();
         }
+    }
+    if (j.contains("target_error")) {
+        const double t = r.number(j["target_error"], "target_error");
+        if (!(t > 0.0 && t < 1.0)) {
+            r.fail("target_error", "must be in (0, 1) (a relative RMS error, e.g. 0.05)");
+        }
+        c.targetError = t;
     }
     if (j.contains("max_memory_mb")) {
         c.maxMemoryBytes = r.unsignedInt(j["max_memory_mb"], "max_memory_mb", 1, 1u << 30) << 20;
@@ -638,6 +645,9 @@ std::string describeConfig(const BakeConfig& c) {
     }
     j["validity"] = {{"backface_threshold", c.backfaceThreshold}, {"dilate", c.dilate}};
     j["max_memory_mb"] = c.maxMemoryBytes >> 20;
+    if (c.targetError) {
+        j["target_error"] = *c.targetError;
+    }
     j["volumes"] = Json::array();
     for (const VolumeConfig& v : c.volumes) {
         Json jv = {

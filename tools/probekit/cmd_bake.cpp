@@ -1,4 +1,5 @@
 // `probekit bake`, `probekit scene` and `probekit bench-rays`.
+#include <chrono>
 #include <cstdio>
 #include <optional>
 #include <string>
@@ -12,6 +13,7 @@
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/bench_rays.hpp"
 #include "probekit/baker/generators.hpp"
+#include "probekit/runtime/sampler.hpp"
 
 namespace probekit::cli {
 namespace {
@@ -45,7 +47,41 @@ struct BakeOptionsCli {
     std::optional<int> sceneIndex;
     std::string report;
     bool quiet = false;
+    std::optional<double> targetError;
+    bool verify = false;
+    uint32_t verifyPoints = 256;
+    uint32_t verifySamples = 4096;
 };
+
+// --verify: the baked file's irradiance at points spread over its volumes against a path
+// reference made of two independent estimates (their difference measures the reference's own
+// noise, which is subtracted).
+Result<baker::ErrorEstimate> verifyBake(const baker::Scene& scene, const baker::BakeConfig& config,
+                                        const PvolFile& file, const BakeOptionsCli& o,
+                                        double& seconds) {
+    const auto start = std::chrono::steady_clock::now();
+    std::vector<VolumeDesc> descs;
+    for (const Volume& v : file.volumes) {
+        descs.push_back(v.desc);
+    }
+    const std::vector<glm::vec3> points = baker::volumeSamplePoints(descs, o.verifyPoints);
+    Result<baker::PointBake> a =
+        baker::bakePoints(scene, config, points, o.verifySamples, 1, o.threads);
+    if (!a) {
+        return a.error();
+    }
+    Result<baker::PointBake> b =
+        baker::bakePoints(scene, config, points, o.verifySamples, 2, o.threads);
+    if (!b) {
+        return b.error();
+    }
+    const runtime::VolumeSet set(file.volumes);
+    baker::ErrorEstimate e =
+        baker::estimateError([&](glm::vec3 p, glm::vec3 n) { return set.irradiance(p, n); }, points,
+                             a.value(), b.value());
+    seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return e;
+}
 
 // --env takes either "R,G,B" (constant radiance) or an image file.
 Result<baker::EnvironmentConfig> parseEnvFlag(const std::string& value) {
@@ -189,6 +225,34 @@ int runBake(const BakeOptionsCli& o) {
         std::fprintf(stderr, "probekit bake: warning: %s\n", w.c_str());
     }
 
+    if (o.targetError) {
+        config.targetError = *o.targetError;
+    }
+    std::optional<baker::TargetChoice> choice;
+    if (config.targetError) {
+        Result<baker::TargetChoice> chosen =
+            baker::chooseSettings(scene.value(), config, *config.targetError, o.threads);
+        if (!chosen) {
+            std::fprintf(stderr, "probekit bake: %s\n", chosen.error().message.c_str());
+            return kExitFailure;
+        }
+        choice = std::move(chosen).value();
+        config = choice->config;
+        if (!o.quiet) {
+            std::printf(
+                "target error %.3g (relative RMS irradiance error against a path reference)\n"
+                "  pilot: %u points x 2 estimates x %u directions, %.2f s: noise %.3g per "
+                "probe, SH band 2 carries %.3g\n"
+                "  chosen: SH order L%d (%s), %u directions per probe (interpolated noise "
+                "%.3g), bricked volumes, levels 0..%u, refine_error %.3g\n",
+                choice->target, choice->pilotPoints, choice->pilotSamples, choice->pilotSeconds,
+                choice->pilotNoise, choice->band2, int(choice->shOrder),
+                choice->shOrder == sh::Order::L1 ? "band 2 < 0.4 x target" : "band 2 needed",
+                choice->samples, choice->predictedNoise, brick::kMaxLevel,
+                choice->interpolationBudget);
+        }
+    }
+
     Result<std::vector<VolumeDesc>> placed = baker::resolveVolumes(scene.value(), config);
     if (!placed) {
         std::fprintf(stderr, "probekit bake: %s\n", placed.error().message.c_str());
@@ -237,6 +301,14 @@ int runBake(const BakeOptionsCli& o) {
             const glm::uvec3 r = d.grid.resolution();
             const glm::vec3 lo = d.grid.bounds().min;
             const glm::vec3 hi = d.grid.bounds().max;
+            if (d.layout == VolumeLayout::Bricked) {
+                std::printf("  volume '%s': bricked, %ux%ux%u level-0 bricks, levels 0..%u, L%d, "
+                            "%s, bounds (%.3f, %.3f, %.3f) .. (%.3f, %.3f, %.3f) m\n",
+                            d.name.c_str(), r.x, r.y, r.z, d.bricks.maxLevel, int(d.shOrder),
+                            std::string(toString(d.storage)).c_str(), lo.x, lo.y, lo.z, hi.x, hi.y,
+                            hi.z);
+                continue;
+            }
             std::printf("  volume '%s': %ux%ux%u %s probes, L%d, %s, bounds (%.3f, %.3f, %.3f) "
                         ".. (%.3f, %.3f, %.3f) m\n",
                         d.name.c_str(), r.x, r.y, r.z,
@@ -284,6 +356,31 @@ int runBake(const BakeOptionsCli& o) {
         {"vpl_mean_cut", s.vplMeanCut},
         {"settings", nlohmann::json::parse(result.value().file.metadata.parametersJson)},
     };
+    uint64_t gpu_bytes = 0;
+    bool any_bricked = false;
+    for (const Volume& v : result.value().file.volumes) {
+        gpu_bytes += v.gpuBytes();
+        any_bricked |= v.desc.layout == VolumeLayout::Bricked;
+    }
+    report["gpu_bytes"] = gpu_bytes;
+    if (any_bricked) {
+        report["bricks_per_level"] = {s.bricksPerLevel[0], s.bricksPerLevel[1], s.bricksPerLevel[2],
+                                      s.bricksPerLevel[3]};
+        report["refine_candidates"] = s.refineCandidates;
+        report["budget_dropped"] = s.budgetDropped;
+        report["budget_error"] = s.budgetError;
+        report["predicted_interpolation_error"] = s.predictedInterpolationError;
+    }
+    if (choice) {
+        report["target_error"] = choice->target;
+        report["predicted_error"] = baker::predictError(*choice, s);
+        report["chosen"] = {{"sh_order", int(choice->shOrder)},
+                            {"samples", choice->samples},
+                            {"refine_error", choice->interpolationBudget},
+                            {"pilot_noise", choice->pilotNoise},
+                            {"band2", choice->band2},
+                            {"pilot_seconds", choice->pilotSeconds}};
+    }
     if (!o.quiet) {
         std::printf("wrote %s: %.2f s, %llu probes, %.3g rays, %.2f Mrays/s, %llu invalid probes, "
                     "peak memory %.1f MiB, %u threads\n",
@@ -295,6 +392,46 @@ int runBake(const BakeOptionsCli& o) {
             std::printf("  %llu VPLs from %llu light paths, %.1f clusters gathered per probe\n",
                         static_cast<unsigned long long>(s.vpls),
                         static_cast<unsigned long long>(s.vplLightPaths), s.vplMeanCut);
+        }
+        if (any_bricked) {
+            std::printf("  bricks by level %llu / %llu / %llu / %llu, %llu tested for "
+                        "refinement, GPU bytes %llu, predicted interpolation error %.3g\n",
+                        static_cast<unsigned long long>(s.bricksPerLevel[0]),
+                        static_cast<unsigned long long>(s.bricksPerLevel[1]),
+                        static_cast<unsigned long long>(s.bricksPerLevel[2]),
+                        static_cast<unsigned long long>(s.bricksPerLevel[3]),
+                        static_cast<unsigned long long>(s.refineCandidates),
+                        static_cast<unsigned long long>(gpu_bytes), s.predictedInterpolationError);
+            if (s.budgetDropped > 0) {
+                std::printf("  max_memory_mb bound: %llu refinements dropped, the costliest "
+                            "with disagreement %.3g\n",
+                            static_cast<unsigned long long>(s.budgetDropped), s.budgetError);
+            }
+        }
+        if (choice) {
+            std::printf("  predicted error %.3g (target %.3g)\n", baker::predictError(*choice, s),
+                        choice->target);
+        }
+    }
+    if (o.verify) {
+        double seconds = 0.0;
+        Result<baker::ErrorEstimate> e =
+            verifyBake(scene.value(), config, result.value().file, o, seconds);
+        if (!e) {
+            std::fprintf(stderr, "probekit bake: --verify: %s\n", e.error().message.c_str());
+            return kExitFailure;
+        }
+        report["verify"] = {{"rel_rmse", e.value().relRmse},
+                            {"rel_rmse_raw", e.value().relRmseRaw},
+                            {"reference_noise", e.value().referenceNoise},
+                            {"points", e.value().points},
+                            {"samples", o.verifySamples},
+                            {"seconds", seconds}};
+        if (!o.quiet) {
+            std::printf("verify: measured error %.4f against a path reference (%zu points, 2 x "
+                        "%u directions, reference noise %.4f subtracted; raw %.4f), %.2f s\n",
+                        e.value().relRmse, e.value().points, o.verifySamples,
+                        e.value().referenceNoise, e.value().relRmseRaw, seconds);
         }
     }
     if (!o.report.empty()) {
@@ -362,6 +499,20 @@ void addBakeCommand(CLI::App& app, Command& selected) {
     cmd->add_option("--scene", o->sceneIndex, "glTF scene index (default: the file's default)");
     cmd->add_option("--report", o->report, "write a JSON report of the bake");
     cmd->add_flag("-q,--quiet", o->quiet, "print nothing but errors");
+    cmd->add_option("--target-error", o->targetError,
+                    "choose density, refinement, SH order and samples for this relative RMS "
+                    "irradiance error (e.g. 0.05)")
+        ->check(CLI::Range(1e-4, 0.99));
+    cmd->add_flag("--verify", o->verify,
+                  "measure the error of the result against a path reference at points spread "
+                  "over the volumes");
+    cmd->add_option("--verify-points", o->verifyPoints, "--verify: points")
+        ->check(CLI::Range(8u, 1u << 20))
+        ->capture_default_str();
+    cmd->add_option("--verify-samples", o->verifySamples,
+                    "--verify: directions per point for each of the two reference estimates")
+        ->check(CLI::Range(64u, 1u << 24))
+        ->capture_default_str();
     cmd->callback([o, &selected] { selected = [o] { return runBake(*o); }; });
 }
 

@@ -180,6 +180,9 @@ struct BakeConfig {
     // removal costs the least error are dropped (BakeStats::budgetDropped / budgetError).
     uint64_t maxMemoryBytes = 4ull << 30;
     std::vector<VolumeConfig> volumes; // empty = one auto-world volume with defaults
+    // "target_error": let chooseSettings pick density, refinement, SH order and sample count
+    // for this relative RMS irradiance error (probekit bake --target-error).
+    std::optional<double> targetError;
 };
 
 // Parses the JSON config. Unknown keys are errors (they are usually typos); every message
@@ -255,5 +258,69 @@ struct BakeResult {
 
 Result<BakeResult> bake(const Scene& scene, const BakeConfig& config,
                         const BakeOptions& options = {});
+
+// ---- References and error-driven settings ----
+
+// Path-traced radiance SH (L2) at world points with config.path's bounces and `samples`
+// directions, the scene's lights and config.environment; `stream` selects independent sample
+// sequences (two streams give two independent estimates). valid[i] = kProbeInvalid for
+// points inside geometry (config.backfaceThreshold).
+struct PointBake {
+    std::vector<sh::ShRgb> sh;
+    std::vector<uint8_t> valid;
+    uint64_t rays = 0;
+};
+Result<PointBake> bakePoints(const Scene& scene, const BakeConfig& config,
+                             const std::vector<glm::vec3>& points, uint32_t samples,
+                             uint32_t stream, uint32_t threads = 0);
+
+// `count` points spread uniformly over the volumes' boxes (in proportion to their volume),
+// from a fixed low-discrepancy sequence (deterministic).
+std::vector<glm::vec3> volumeSamplePoints(const std::vector<VolumeDesc>& volumes, size_t count);
+
+// The error measure of --target-error and --verify: relative RMS irradiance error,
+// sqrt(sum |E - E_ref|^2 / sum |E_ref|^2) over points, the six axis normals and the three
+// channels (irradiance from radiance SH, sh::irradiance).
+struct ErrorEstimate {
+    double relRmse = 0.0;        // against the mean of the two reference estimates, with the
+                                 // reference's own noise subtracted (0 if noise explains all)
+    double relRmseRaw = 0.0;     // without the subtraction
+    double referenceNoise = 0.0; // RMS noise of the reference mean, same units
+    size_t points = 0;           // valid points compared
+};
+// `irradiance(point, normal)` is what the baked volumes give (e.g. runtime::VolumeSet
+// irradiance, W/m^2 per channel); ref_a / ref_b are two independent reference estimates
+// (bakePoints with two streams). Points invalid in either reference are skipped.
+ErrorEstimate
+estimateError(const std::function<glm::vec3(glm::vec3 point, glm::vec3 normal)>& irradiance,
+              const std::vector<glm::vec3>& points, const PointBake& ref_a, const PointBake& ref_b);
+
+// What --target-error chose and why (all errors are fractions of RMS irradiance).
+struct TargetChoice {
+    BakeConfig config; // the settings to bake with
+    double target = 0.0;
+    uint32_t pilotPoints = 0;  // valid pilot points
+    uint32_t pilotSamples = 0; // directions per pilot estimate
+    double pilotNoise = 0.0;   // one probe's noise at pilotSamples
+    double band2 = 0.0;        // RMS irradiance of SH band 2 (what L1 would lose)
+    sh::Order shOrder = sh::Order::L2;
+    uint32_t samples = 0;             // chosen directions per probe (path) / direct samples
+    double predictedNoise = 0.0;      // noise after interpolation at `samples`
+    double interpolationBudget = 0.0; // refine_error given to the bricked volumes
+    double pilotSeconds = 0.0;
+};
+// Chooses settings so that the bake's error against a converged path reference is about
+// `target`: every volume becomes bricked (levels 3) with refine_error from the error budget;
+// SH order L1 where band 2 carries less than 0.4 x target; the sample count so that the
+// interpolated Monte Carlo noise is half the target (from a pilot of two independent
+// estimates at 64 points). Budget: noise 0.5 t, band 2 (if dropped) <= 0.4 t, interpolation
+// the rest, times 0.9. For methods vpl and lpv the count chosen is their direct-light samples;
+// their own bias (VPL clamping, LPV propagation) is not modelled.
+Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, double target,
+                                    uint32_t threads = 0);
+
+// Predicted error of a bake made with `choice`: interpolation (BakeStats), noise and band 2
+// combined in quadrature.
+double predictError(const TargetChoice& choice, const BakeStats& stats);
 
 } // namespace probekit::baker

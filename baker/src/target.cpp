@@ -1,0 +1,258 @@
+// References at points, the error measure, and the settings --target-error chooses.
+#include <algorithm>
+#include <atomic>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include "path_integrator.hpp"
+#include "probekit/baker/bake.hpp"
+#include "ray_tracer.hpp"
+
+namespace probekit::baker {
+namespace {
+
+const glm::vec3 kAxisNormals[6] = {{1, 0, 0},  {-1, 0, 0}, {0, 1, 0},
+                                   {0, -1, 0}, {0, 0, 1},  {0, 0, -1}};
+
+// Volume index reserved for reference and pilot estimates, so that their sample sequences
+// never coincide with a volume's probes.
+constexpr uint32_t kReferenceVolumeIndex = 0xfffffff0u;
+
+double radicalInverse(uint64_t i, uint32_t base) {
+    double inverse = 1.0 / base, factor = inverse, result = 0.0;
+    while (i > 0) {
+        result += double(i % base) * factor;
+        i /= base;
+        factor *= inverse;
+    }
+    return result;
+}
+
+// Sum over the six axis normals and three channels of E(n)^2 for the SH difference a - b
+// (b may be null: E(a)^2).
+double squaredIrradiance(const sh::ShRgb& a, const sh::ShRgb* b, sh::Order order) {
+    sh::ShRgb d = a;
+    if (b) {
+        sh::ShRgb negative = *b;
+        negative *= -1.0f;
+        d += negative;
+    }
+    double sum = 0.0;
+    for (const glm::vec3& n : kAxisNormals) {
+        const glm::vec3 e = sh::irradiance(d, order, n);
+        sum += double(glm::dot(e, e));
+    }
+    return sum;
+}
+
+sh::ShRgb mean(const sh::ShRgb& a, const sh::ShRgb& b) {
+    sh::ShRgb m = a;
+    m += b;
+    m *= 0.5f;
+    return m;
+}
+
+} // namespace
+
+std::vector<glm::vec3> volumeSamplePoints(const std::vector<VolumeDesc>& volumes, size_t count) {
+    std::vector<double> cumulative;
+    double total = 0.0;
+    for (const VolumeDesc& d : volumes) {
+        const glm::vec3 s = d.grid.bounds().size();
+        total += double(s.x) * s.y * s.z;
+        cumulative.push_back(total);
+    }
+    std::vector<glm::vec3> points;
+    if (volumes.empty() || !(total > 0.0)) {
+        return points;
+    }
+    points.reserve(count);
+    for (size_t i = 0; i < count; ++i) {
+        // Halton bases 2, 3, 5 inside the box, base 7 picks the box; index from 1 (0 is a
+        // corner).
+        const double pick = radicalInverse(i + 1, 7) * total;
+        const size_t v = size_t(std::upper_bound(cumulative.begin(), cumulative.end(), pick) -
+                                cumulative.begin());
+        const VolumeDesc& d = volumes[std::min(v, volumes.size() - 1)];
+        const glm::vec3 t(float(radicalInverse(i + 1, 2)), float(radicalInverse(i + 1, 3)),
+                          float(radicalInverse(i + 1, 5)));
+        const grid::Aabb& box = d.grid.bounds();
+        points.push_back(d.grid.frame().toWorld(box.min + t * box.size()));
+    }
+    return points;
+}
+
+Result<PointBake> bakePoints(const Scene& scene, const BakeConfig& config,
+                             const std::vector<glm::vec3>& points, uint32_t samples,
+                             uint32_t stream, uint32_t threads) {
+    Result<std::unique_ptr<RayTracer>> tracer = RayTracer::create(scene);
+    if (!tracer) {
+        return tracer.error();
+    }
+    PathSettings settings;
+    settings.samples = samples;
+    settings.maxBounces = config.path.maxBounces;
+    const PathIntegrator integrator(scene, *tracer.value(), settings, sh::Order::L2);
+    PointBake out;
+    out.sh.resize(points.size());
+    out.valid.resize(points.size());
+    std::atomic<size_t> next{0};
+    std::atomic<uint64_t> rays{0};
+    auto worker = [&] {
+        uint64_t local_rays = 0;
+        for (size_t i = next.fetch_add(1); i < points.size(); i = next.fetch_add(1)) {
+            const ProbeSample s =
+                integrator.bakeProbe(points[i], config.seed, kReferenceVolumeIndex - stream, i);
+            out.sh[i] = s.sh;
+            out.valid[i] =
+                s.backFaceFraction > config.backfaceThreshold ? kProbeInvalid : kProbeValid;
+            local_rays += s.rays;
+        }
+        rays.fetch_add(local_rays);
+    };
+    const uint32_t n = threads ? threads : std::max(1u, std::thread::hardware_concurrency());
+    std::vector<std::thread> pool;
+    for (uint32_t t = 1; t < n; ++t) {
+        pool.emplace_back(worker);
+    }
+    worker();
+    for (std::thread& t : pool) {
+        t.join();
+    }
+    out.rays = rays.load();
+    return out;
+}
+
+ErrorEstimate
+estimateError(const std::function<glm::vec3(glm::vec3 point, glm::vec3 normal)>& irradiance,
+              const std::vector<glm::vec3>& points, const PointBake& ref_a,
+              const PointBake& ref_b) {
+    ErrorEstimate e;
+    double error2 = 0.0, reference2 = 0.0, noise2 = 0.0;
+    for (size_t i = 0; i < points.size(); ++i) {
+        if (ref_a.valid[i] != kProbeValid || ref_b.valid[i] != kProbeValid) {
+            continue;
+        }
+        const sh::ShRgb reference = mean(ref_a.sh[i], ref_b.sh[i]);
+        for (const glm::vec3& n : kAxisNormals) {
+            const glm::vec3 r = sh::irradiance(reference, sh::Order::L2, n);
+            const glm::vec3 d = irradiance(points[i], n) - r;
+            error2 += double(glm::dot(d, d));
+            reference2 += double(glm::dot(r, r));
+        }
+        // Var(mean of two) = E|a - b|^2 / 4.
+        noise2 += 0.25 * squaredIrradiance(ref_a.sh[i], &ref_b.sh[i], sh::Order::L2);
+        ++e.points;
+    }
+    if (reference2 > 0.0) {
+        e.relRmseRaw = std::sqrt(error2 / reference2);
+        e.referenceNoise = std::sqrt(noise2 / reference2);
+        e.relRmse = std::sqrt(std::max(0.0, error2 - noise2) / reference2);
+    }
+    return e;
+}
+
+Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, double target,
+                                    uint32_t threads) {
+    if (!(target > 0.0) || !(target < 1.0)) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "target_error: " + std::to_string(target) + " is not in (0, 1)");
+    }
+    const auto start = std::chrono::steady_clock::now();
+    TargetChoice choice;
+    choice.target = target;
+    choice.config = base;
+    if (choice.config.volumes.empty()) {
+        choice.config.volumes.push_back(VolumeConfig{});
+    }
+    for (VolumeConfig& v : choice.config.volumes) {
+        v.layout = VolumeLayout::Bricked;
+        v.position = grid::PositionMode::Center;
+        v.maxLevel = brick::kMaxLevel;
+        v.resolution.reset(); // level 0 from the density rule
+    }
+    Result<std::vector<VolumeDesc>> descs = resolveVolumes(scene, choice.config);
+    if (!descs) {
+        return descs.error();
+    }
+
+    // Pilot: two independent estimates at 64 points.
+    constexpr size_t kPilotPoints = 64;
+    constexpr uint32_t kPilotSamples = 256;
+    const std::vector<glm::vec3> points = volumeSamplePoints(descs.value(), kPilotPoints);
+    Result<PointBake> a = bakePoints(scene, base, points, kPilotSamples, 11, threads);
+    if (!a) {
+        return a.error();
+    }
+    Result<PointBake> b = bakePoints(scene, base, points, kPilotSamples, 12, threads);
+    if (!b) {
+        return b.error();
+    }
+    double noise2 = 0.0, reference2 = 0.0, band2 = 0.0;
+    for (size_t i = 0; i < points.size(); ++i) {
+        if (a.value().valid[i] != kProbeValid || b.value().valid[i] != kProbeValid) {
+            continue;
+        }
+        const sh::ShRgb m = mean(a.value().sh[i], b.value().sh[i]);
+        sh::ShRgb l1 = m;
+        for (int k = 4; k < 9; ++k) {
+            l1.rgb[k] = glm::vec3(0.0f);
+        }
+        // One estimate's variance: E|a - b|^2 / 2.
+        noise2 += 0.5 * squaredIrradiance(a.value().sh[i], &b.value().sh[i], sh::Order::L2);
+        reference2 += squaredIrradiance(m, nullptr, sh::Order::L2);
+        band2 += squaredIrradiance(m, &l1, sh::Order::L2);
+        ++choice.pilotPoints;
+    }
+    if (choice.pilotPoints == 0 || !(reference2 > 0.0)) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "target_error: no pilot point outside geometry receives light; the "
+                         "error of a black scene is not defined");
+    }
+    choice.pilotSamples = kPilotSamples;
+    choice.pilotNoise = std::sqrt(noise2 / reference2);
+    // Band 2's own share, less the noise it carries (band 2 is 5 of the 9 coefficients).
+    choice.band2 = std::sqrt(std::max(
+        0.0, band2 / reference2 - 5.0 / 9.0 * 0.5 * choice.pilotNoise * choice.pilotNoise));
+
+    const double noise_budget = 0.5 * target;
+    choice.shOrder = choice.band2 < 0.4 * target ? sh::Order::L1 : sh::Order::L2;
+    const double sh_error = choice.shOrder == sh::Order::L1 ? choice.band2 : 0.0;
+    // Trilinear interpolation averages 8 probes: over uniform positions the noise variance
+    // falls to (2/3)^3 of one probe's.
+    constexpr double kInterpolatedVariance = 8.0 / 27.0;
+    const double wanted = double(kPilotSamples) * choice.pilotNoise * choice.pilotNoise *
+                          kInterpolatedVariance / (noise_budget * noise_budget);
+    choice.samples = std::bit_ceil(uint32_t(std::clamp(std::ceil(wanted), 32.0, double(1u << 16))));
+    choice.predictedNoise = choice.pilotNoise * std::sqrt(double(kPilotSamples) / choice.samples *
+                                                          kInterpolatedVariance);
+    choice.interpolationBudget =
+        0.9 * std::sqrt(std::max(target * target - choice.predictedNoise * choice.predictedNoise -
+                                     sh_error * sh_error,
+                                 0.04 * target * target));
+
+    if (base.method == "path") {
+        choice.config.path.samples = choice.samples;
+    } else if (base.method == "vpl") {
+        choice.config.vpl.directSamples = choice.samples;
+    } else {
+        choice.config.lpv.directSamples = choice.samples;
+    }
+    for (VolumeConfig& v : choice.config.volumes) {
+        v.shOrder = choice.shOrder;
+        v.refineError = float(choice.interpolationBudget);
+    }
+    choice.pilotSeconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return choice;
+}
+
+double predictError(const TargetChoice& choice, const BakeStats& stats) {
+    const double sh_error = choice.shOrder == sh::Order::L1 ? choice.band2 : 0.0;
+    return std::sqrt(stats.predictedInterpolationError * stats.predictedInterpolationError +
+                     choice.predictedNoise * choice.predictedNoise + sh_error * sh_error);
+}
+
+} // namespace probekit::baker
