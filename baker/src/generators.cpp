@@ -1,7 +1,10 @@
 #include "probekit/baker/generators.hpp"
 
+#include <cmath>
 #include <cstring>
+#include <numbers>
 
+#include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
 #include <nlohmann/json.hpp>
 
@@ -46,13 +49,20 @@ struct QuadMesh {
 struct PointLightSpec {
     glm::vec3 position;
     glm::vec3 color;
-    float intensity;
+    float intensity; // W/sr
+};
+
+struct DirectionalLightSpec {
+    glm::vec3 direction; // unit vector the light travels along
+    glm::vec3 color;
+    float intensity; // W/m^2 on a surface facing the light
 };
 
 struct SceneSpec {
     std::vector<MaterialSpec> materials;
     std::vector<QuadMesh> meshes;
     std::vector<PointLightSpec> lights;
+    std::vector<DirectionalLightSpec> suns;
 };
 
 SceneSpec cornell() {
@@ -111,6 +121,62 @@ SceneSpec thinWall() {
     s.meshes = {m};
     s.lights = {{glm::vec3(-2.0f, 1.8f, -1.0f), glm::vec3(1.0f), 20.0f}};
     return s;
+}
+
+SceneSpec courtyard() {
+    SceneSpec s;
+    s.materials = {{"paving", glm::vec3(0.45f, 0.42f, 0.38f)},
+                   {"plaster", glm::vec3(0.6f)},
+                   {"terracotta", glm::vec3(0.66f, 0.3f, 0.18f)},
+                   {"sage", glm::vec3(0.35f, 0.55f, 0.35f)},
+                   {"marble", glm::vec3(0.75f, 0.74f, 0.7f)}};
+    QuadMesh paving{0, {}, {}}, plaster{1, {}, {}}, terracotta{2, {}, {}}, sage{3, {}, {}},
+        marble{4, {}, {}};
+    const float half = 8.0f; // the open interior spans -8..8 in x and z
+    const float wall = 0.2f; // wall thickness, outside the interior
+    const float height = 6.0f;
+    // Paving slab under everything, and four walls standing on it: every piece a closed box,
+    // so a probe inside one sees only back faces.
+    paving.box(glm::vec3(-half - wall, -0.1f, -half - wall),
+               glm::vec3(half + wall, 0.0f, half + wall));
+    plaster.box(glm::vec3(-half - wall, 0.0f, -half - wall),
+                glm::vec3(half + wall, height, -half)); // -z, behind the colonnade
+    plaster.box(glm::vec3(-half - wall, 0.0f, half), glm::vec3(half + wall, height, half + wall));
+    terracotta.box(glm::vec3(half, 0.0f, -half), glm::vec3(half + wall, height, half)); // +x
+    sage.box(glm::vec3(-half - wall, 0.0f, -half), glm::vec3(-half, height, half));     // -x
+    // Colonnade along the -z wall: a walkway 2.5 m deep under a roof slab whose underside is
+    // 3.5 m up, carried by eight 0.4 m square columns 2 m apart, flush with the roof's edge.
+    const float walk_edge = -half + 2.5f;
+    const float roof = 3.5f;
+    marble.box(glm::vec3(-half, roof, -half), glm::vec3(half, roof + 0.25f, walk_edge));
+    for (int i = 0; i < 8; ++i) {
+        const float x = -7.0f + 2.0f * float(i);
+        marble.box(glm::vec3(x - 0.2f, 0.0f, walk_edge - 0.4f),
+                   glm::vec3(x + 0.2f, roof, walk_edge));
+    }
+    // A fountain in the middle: a low basin plinth and a pedestal on it.
+    marble.box(glm::vec3(-1.4f, 0.0f, -1.4f), glm::vec3(1.4f, 0.5f, 1.4f));
+    marble.box(glm::vec3(-0.3f, 0.5f, -0.3f), glm::vec3(0.3f, 1.2f, 0.3f));
+    s.meshes = {paving, plaster, terracotta, sage, marble};
+    // The sun 50 degrees above the horizon, shining from the open +z side (30 degrees towards
+    // +x), so the columns' shadows fall into the walkway while the roof shades its back.
+    const float elevation = 50.0f * std::numbers::pi_v<float> / 180.0f;
+    const float azimuth = 30.0f * std::numbers::pi_v<float> / 180.0f;
+    const glm::vec3 to_sun(std::sin(azimuth) * std::cos(elevation), std::sin(elevation),
+                           std::cos(azimuth) * std::cos(elevation));
+    s.suns = {{-to_sun, glm::vec3(1.0f, 0.95f, 0.85f), 3.0f}};
+    return s;
+}
+
+// The glTF node rotation (x, y, z, w) that turns the light's local -Z into unit `direction`:
+// the half-way quaternion (1 + a.d, a x d) normalised, a = -Z (never opposite to `direction`
+// here: the suns shine downwards, never along +Z exactly).
+Json rotationFromMinusZ(glm::vec3 direction) {
+    const glm::vec3 a(0.0f, 0.0f, -1.0f);
+    const glm::vec3 axis = glm::cross(a, direction);
+    const float w = 1.0f + glm::dot(a, direction);
+    const float norm = std::sqrt(glm::dot(axis, axis) + w * w);
+    return {axis.x / norm, axis.y / norm, axis.z / norm, w / norm};
 }
 
 Json buildGltf(const SceneSpec& s, const std::string& bin_name, std::vector<uint8_t>& bin) {
@@ -186,17 +252,26 @@ Json buildGltf(const SceneSpec& s, const std::string& bin_name, std::vector<uint
         j["scenes"][0]["nodes"].push_back(j["nodes"].size());
         j["nodes"].push_back({{"name", s.materials[mesh.material].name}, {"mesh", mi}});
     }
-    if (!s.lights.empty()) {
+    if (!s.lights.empty() || !s.suns.empty()) {
         Json lights = Json::array();
-        for (size_t li = 0; li < s.lights.size(); ++li) {
-            const PointLightSpec& l = s.lights[li];
-            lights.push_back({{"type", "point"},
-                              {"color", {l.color.x, l.color.y, l.color.z}},
-                              {"intensity", l.intensity}});
+        auto add_light_node = [&j, &lights](Json light, Json node) {
+            node["name"] = "light" + std::to_string(lights.size());
+            node["extensions"]["KHR_lights_punctual"] = {{"light", lights.size()}};
+            lights.push_back(std::move(light));
             j["scenes"][0]["nodes"].push_back(j["nodes"].size());
-            j["nodes"].push_back({{"name", "light" + std::to_string(li)},
-                                  {"translation", {l.position.x, l.position.y, l.position.z}},
-                                  {"extensions", {{"KHR_lights_punctual", {{"light", li}}}}}});
+            j["nodes"].push_back(std::move(node));
+        };
+        for (const PointLightSpec& l : s.lights) {
+            add_light_node({{"type", "point"},
+                            {"color", {l.color.x, l.color.y, l.color.z}},
+                            {"intensity", l.intensity}},
+                           {{"translation", {l.position.x, l.position.y, l.position.z}}});
+        }
+        for (const DirectionalLightSpec& l : s.suns) {
+            add_light_node({{"type", "directional"},
+                            {"color", {l.color.x, l.color.y, l.color.z}},
+                            {"intensity", l.intensity}},
+                           {{"rotation", rotationFromMinusZ(l.direction)}});
         }
         j["extensions"]["KHR_lights_punctual"] = {{"lights", lights}};
         j["extensionsUsed"].push_back("KHR_lights_punctual");
@@ -211,7 +286,7 @@ Json buildGltf(const SceneSpec& s, const std::string& bin_name, std::vector<uint
 } // namespace
 
 std::vector<std::string> generatedSceneNames() {
-    return {"cornell", "thin-wall"};
+    return {"cornell", "thin-wall", "courtyard"};
 }
 
 Result<void> writeGeneratedScene(const std::string& name, const std::filesystem::path& path) {
@@ -220,9 +295,11 @@ Result<void> writeGeneratedScene(const std::string& name, const std::filesystem:
         spec = cornell();
     } else if (name == "thin-wall") {
         spec = thinWall();
+    } else if (name == "courtyard") {
+        spec = courtyard();
     } else {
         return makeError(ErrorCode::InvalidArgument,
-                         "unknown scene '" + name + "' (known: cornell, thin-wall)");
+                         "unknown scene '" + name + "' (known: cornell, thin-wall, courtyard)");
     }
     std::filesystem::path bin_path = path;
     bin_path.replace_extension(".bin");

@@ -2,10 +2,12 @@
 //
 // Every glTF here is written by the test into a temporary folder (JSON with data: URIs, JSON
 // with an external .bin, hand-built .glb, hand-encoded PNGs), so each expected number is known
-// exactly; the shared Cornell box and Uffizi map check the loaders on real exporter output.
+// exactly; the shared Cornell box and Uffizi map check the loaders on real exporter output, and
+// the generated courtyard is checked for closed boxes, its sun, and one small bake's shading.
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -22,8 +24,12 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "bake_test_support.hpp"
+#include "probekit/baker/bake.hpp"
+#include "probekit/baker/generators.hpp"
 #include "probekit/baker/scene.hpp"
 #include "probekit/formats/pvol.hpp"
+#include "probekit/formats/sh.hpp"
 
 using namespace probekit;
 using namespace probekit::baker;
@@ -1031,6 +1037,117 @@ TEST(SceneCornellBox, LoadsWithItsNodeRotationAndEmissiveLight) {
         }
     }
     EXPECT_EQ(light_triangles, 2u);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The generated courtyard (generators.hpp)
+
+namespace {
+// The signed volume of the boxes, sum of det(p0, p1, p2) / 6 over the triangles in double, is
+// exact to the float rounding of the corners (~5e-7 m on coordinates up to 8.2 m), ~1e-4 m^3
+// over the 124 m^3; a missing face or a flipped box moves it by metres cubed.
+constexpr double kVolumeTolerance = 1e-3;
+// The sun's direction is a quaternion written as float JSON numbers and turned back into a
+// vector: float rounding of a unit quaternion, a few 1e-7.
+constexpr float kSunDirectionTolerance = 1e-5f;
+// Bake figures at 1024 directions per probe. The open probe's irradiance from +Y is the sun's
+// (3 W/m^2 x sin 50 deg = 2.30 in red) plus most of the sky's (pi x 0.3 = 0.94) plus a little
+// bounce light: 3.08..3.12 in red over seeds 1..8. The covered one sees neither the sun nor the
+// sky above it, only the roof's underside and the courtyard through the arcade: 0.48..0.58,
+// the noisy one (~7% standard deviation). Their ratio is ~5.5; a bound of 2 would need the
+// covered value to be off by 1 W/m^2, over 20 standard deviations, yet catches a roof that
+// lets the sun or sky through.
+constexpr float kOpenOverCoveredRatio = 2.0f;
+constexpr uint32_t kCourtyardSamples = 1024;
+
+// The courtyard written into this test's own folder: test::generatedScene shares one folder per
+// scene name, which two test processes (ctest -j) would empty under each other.
+Scene courtyardScene(const TempDir& dir) {
+    const fs::path file = dir / "courtyard.gltf";
+    EXPECT_TRUE(writeGeneratedScene("courtyard", file).ok());
+    return test::loadOrFail(file);
+}
+} // namespace
+
+TEST(SceneCourtyard, LoadsAsClosedOutwardBoxesUnderOneSun) {
+    TempDir dir;
+    const Scene scene = courtyardScene(dir);
+    // Paving, four walls, roof, eight columns, plinth and pedestal: 16 boxes x 12 triangles.
+    EXPECT_EQ(scene.triangles.size(), 192u);
+    EXPECT_TRUE(scene.warnings.empty()) << scene.warnings.front();
+    expectNear(scene.bounds.min, {-8.2f, -0.1f, -8.2f}, kPositionTolerance, "min");
+    expectNear(scene.bounds.max, {8.2f, 6.0f, 8.2f}, kPositionTolerance, "max");
+
+    // Closed and facing out: every box adds its volume (outward winding), and the sum is the
+    // boxes' known total. Paving 16.4 x 0.1 x 16.4, walls 2 x 16.4 x 6 x 0.2 + 2 x 0.2 x 6 x 16,
+    // roof 16 x 0.25 x 2.5, columns 8 x 0.4 x 0.4 x 3.5, plinth 2.8 x 0.5 x 2.8, pedestal
+    // 0.6 x 0.7 x 0.6.
+    double volume = 0.0;
+    for (const glm::uvec3& t : scene.triangles) {
+        const glm::dvec3 a = scene.positions[t.x], b = scene.positions[t.y],
+                         c = scene.positions[t.z];
+        volume += glm::dot(a, glm::cross(b, c)) / 6.0;
+    }
+    EXPECT_NEAR(volume, 26.896 + 39.36 + 38.4 + 10.0 + 4.48 + 3.92 + 0.252, kVolumeTolerance);
+
+    // Five materials, none emissive, two walls coloured so the bounce light is.
+    ASSERT_EQ(scene.materials.size(), 5u) << "every primitive has a material";
+    for (const Material& m : scene.materials) {
+        EXPECT_FALSE(m.isEmissive()) << m.name;
+    }
+    EXPECT_EQ(scene.materials[2].name, "terracotta");
+    expectNear(scene.materials[2].baseColor, {0.66f, 0.3f, 0.18f}, kFactorTolerance, "terracotta");
+    EXPECT_EQ(scene.materials[3].name, "sage");
+
+    // The sun: 50 deg up, shining from +z turned 30 deg towards +x.
+    ASSERT_EQ(scene.lights.size(), 1u);
+    const PunctualLight& sun = scene.lights[0];
+    EXPECT_EQ(sun.type, LightType::Directional);
+    const double elevation = 50.0 * std::numbers::pi / 180.0;
+    const double azimuth = 30.0 * std::numbers::pi / 180.0;
+    const glm::vec3 to_sun(std::sin(azimuth) * std::cos(elevation), std::sin(elevation),
+                           std::cos(azimuth) * std::cos(elevation));
+    expectNear(sun.direction, -to_sun, kSunDirectionTolerance, "sun direction");
+    expectNear(sun.intensity, {3.0f, 2.85f, 2.55f}, kFactorTolerance, "colour x intensity");
+}
+
+TEST(SceneCourtyard, OpenMiddleOutshinesTheColonnadeAndColumnsAreInside) {
+    TempDir dir;
+    Scene scene = courtyardScene(dir);
+    // The sky of examples/courtyard-bake.json.
+    EnvironmentConfig sky;
+    sky.type = EnvironmentConfig::Type::Constant;
+    sky.radiance = glm::vec3(0.3f, 0.4f, 0.6f);
+    Result<Environment> environment = makeEnvironment(sky);
+    ASSERT_TRUE(environment.ok()) << environment.error().message;
+    scene.environment = std::move(environment).value();
+
+    const glm::vec3 open(3.0f, 2.0f, 4.0f);
+    // Under the roof near the back wall: the sun, 50 deg up, would have to pass the roof's edge
+    // 2.5 m away and 1 m higher, so the roof shades the probe.
+    const glm::vec3 covered(-2.0f, 2.5f, -7.5f);
+    const glm::vec3 in_column(1.0f, 1.5f, -5.7f); // the column at x = 1 spans z -5.9..-5.5
+    BakeConfig config = test::probesAt({open, covered, in_column}, 0.05f);
+    config.path.samples = kCourtyardSamples;
+    config.dilate = false; // a lone invalid probe has no neighbour to fill it from
+    const Result<BakeResult> result = bake(scene, config);
+    ASSERT_TRUE(result.ok()) << result.error().message;
+    const std::vector<Volume>& volumes = result.value().file.volumes;
+    ASSERT_EQ(volumes.size(), 3u);
+
+    const glm::vec3 up(0.0f, 1.0f, 0.0f);
+    const glm::vec3 open_up = sh::irradiance(volumes[0].probe(0), sh::Order::L2, up);
+    const glm::vec3 covered_up = sh::irradiance(volumes[1].probe(0), sh::Order::L2, up);
+    std::printf("[courtyard] E(+Y) open (%.3f, %.3f, %.3f), covered (%.3f, %.3f, %.3f)\n",
+                open_up.x, open_up.y, open_up.z, covered_up.x, covered_up.y, covered_up.z);
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_GT(covered_up[c], 0.0f) << "channel " << c << ": bounce light reaches the walkway";
+        EXPECT_GT(open_up[c], kOpenOverCoveredRatio * covered_up[c]) << "channel " << c;
+    }
+    EXPECT_EQ(volumes[0].validity, std::vector<uint8_t>{1});
+    EXPECT_EQ(volumes[1].validity, std::vector<uint8_t>{1});
+    EXPECT_EQ(volumes[2].validity, std::vector<uint8_t>{0}) << "inside a column";
+    EXPECT_EQ(result.value().stats.invalidProbes, 1u);
 }
 
 // ---------------------------------------------------------------------------------------------

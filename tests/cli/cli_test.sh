@@ -35,6 +35,7 @@ expect 0 "--points" -- "$pk" sample --help
 expect 2 "" -- "$pk" bake --no-such-flag x.gltf -o y.pvol
 
 expect 0 "wrote cornell.gltf" -- "$pk" scene cornell -o cornell.gltf
+expect 0 "wrote courtyard.gltf" -- "$pk" scene courtyard -o courtyard.gltf
 expect 0 "wrote small.pvol" -- "$pk" bake cornell.gltf -o small.pvol --resolution 2,2,2 \
     --samples 16 --report report.json
 check "report names the bake figures" grep -q '"mrays_per_second"' report.json
