@@ -162,17 +162,16 @@ struct Disagreement {
 };
 
 // Compares the brick's trilinear interpolation with baked values at the finer lattice points
-// of its region (those that are not its own probes). Points inside geometry, or whose
-// interpolation reads a probe inside geometry, are skipped: their values are dilated, not lit.
+// of its region (those that are not its own probes). Points inside geometry are skipped (their
+// values are dilated, not lit); the brick's own probes inside geometry take part with their
+// dilated values, as the runtime will interpolate them.
 // `noise2` is the relative noise variance of one probe's irradiance (see bakeBricked).
 Disagreement measure(const Lattice& lattice, const Brick& b, uint32_t max_level, sh::Order order,
                      float scale, double noise2) {
     std::vector<sh::ShRgb> own(kBrickProbeCount);
-    std::vector<uint8_t> own_valid(kBrickProbeCount);
     const std::vector<glm::uvec3> own_points = regionPoints(b, max_level, 1);
     for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
         own[k] = lattice.sh(own_points[k]);
-        own_valid[k] = lattice.valid(own_points[k]);
     }
     constexpr uint32_t kSub = 2;
     constexpr uint32_t n = kBrickCells * kSub + 1;
@@ -189,15 +188,6 @@ Disagreement measure(const Lattice& lattice, const Brick& b, uint32_t max_level,
                     continue; // one of the brick's own probes, or inside geometry
                 }
                 const glm::vec3 local = glm::vec3(q) / float(kSub);
-                bool corners_valid = true;
-                const glm::uvec3 lo = glm::min(glm::uvec3(local), glm::uvec3(kBrickCells - 1));
-                for (uint32_t c = 0; c < 8; ++c) {
-                    const glm::uvec3 p = lo + glm::uvec3(c & 1, (c >> 1) & 1, c >> 2);
-                    corners_valid &= own_valid[p.x + kBrickSize * (p.y + kBrickSize * p.z)] != 0;
-                }
-                if (!corners_valid) {
-                    continue;
-                }
                 const double e2 =
                     squaredDifference(brick::interpolate(own, local), lattice.sh(u), order) *
                     inv_scale2;
@@ -385,7 +375,23 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
         const auto pts = regionPoints(n.brick, max_level, 1);
         wanted.insert(wanted.end(), pts.begin(), pts.end());
     }
+    // Invalid probes take dilated values as soon as they are baked: the refinement test then
+    // sees what the runtime will interpolate.
+    auto dilate_all = [&] {
+        if (!settings.dilate) {
+            return;
+        }
+        std::vector<uint64_t> invalid;
+        for (const auto& [key, index] : lattice.indexMap()) {
+            if (lattice.allValid()[index] != kProbeValid) {
+                invalid.push_back(key);
+            }
+        }
+        std::sort(invalid.begin(), invalid.end());
+        dilateLattice(lattice, invalid, 1u << max_level);
+    };
     lattice.ensure(wanted);
+    dilate_all();
     const float scale = irradianceScale(lattice, wanted, order);
 
     // Monte Carlo noise: a second, independent bake of up to kNoiseProbes valid level-0 probes
@@ -473,6 +479,7 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
             wanted.insert(wanted.end(), finer.begin(), finer.end());
         }
         lattice.ensure(wanted);
+        dilate_all();
         out.refineCandidates += candidates.size();
         std::vector<int> next;
         for (int i : candidates) {
