@@ -584,17 +584,22 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
     });
 
     // Predicted interpolation error: per leaf the RMS disagreement where it was measured,
-    // otherwise its prediction, weighted by the leaf's volume.
+    // otherwise its prediction, weighted by the leaf's volume times its share of valid probes
+    // (error is only ever measured in open space).
     double sum_w = 0.0, sum_e2 = 0.0;
     for (int i : leaf_nodes) {
         const Node& n = nodes[size_t(i)];
         const double e = n.measured >= 0.0f ? n.measured : n.predicted;
-        const double w = std::ldexp(1.0, -3 * int(n.brick.level));
+        const auto own = regionPoints(n.brick, max_level, 1);
+        const double valid_share =
+            double(std::count_if(own.begin(), own.end(),
+                                 [&](const glm::uvec3& u) { return lattice.valid(u); })) /
+            double(kBrickProbeCount);
+        const double w = std::ldexp(valid_share, -3 * int(n.brick.level));
         sum_w += w;
         sum_e2 += w * e * e;
     }
     out.predictedError = sum_w > 0.0 ? std::sqrt(sum_e2 / sum_w) : 0.0;
-    out.noise = float(std::sqrt(noise2));
     out.noise = float(std::sqrt(noise2));
 
     // Re-express every leaf on the lattice of the deepest level actually used.

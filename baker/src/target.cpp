@@ -217,7 +217,7 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
     choice.band2 = std::sqrt(std::max(
         0.0, band2 / reference2 - 5.0 / 9.0 * 0.5 * choice.pilotNoise * choice.pilotNoise));
 
-    const double noise_budget = 0.5 * target;
+    const double noise_budget = 0.6 * target;
     choice.shOrder = choice.band2 < 0.4 * target ? sh::Order::L1 : sh::Order::L2;
     const double sh_error = choice.shOrder == sh::Order::L1 ? choice.band2 : 0.0;
     // Trilinear interpolation averages 8 probes: over uniform positions the noise variance
@@ -225,11 +225,11 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
     constexpr double kInterpolatedVariance = 8.0 / 27.0;
     const double wanted = double(kPilotSamples) * choice.pilotNoise * choice.pilotNoise *
                           kInterpolatedVariance / (noise_budget * noise_budget);
-    choice.samples = std::bit_ceil(uint32_t(std::clamp(std::ceil(wanted), 32.0, double(1u << 16))));
+    choice.samples = uint32_t(std::clamp(std::ceil(wanted), 8.0, double(1u << 16)));
     choice.predictedNoise = choice.pilotNoise * std::sqrt(double(kPilotSamples) / choice.samples *
                                                           kInterpolatedVariance);
     choice.interpolationBudget =
-        0.9 * std::sqrt(std::max(target * target - choice.predictedNoise * choice.predictedNoise -
+        std::sqrt(std::max(target * target - choice.predictedNoise * choice.predictedNoise -
                                      sh_error * sh_error,
                                  0.04 * target * target));
 
