@@ -475,6 +475,7 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
             bs.refineError = vc.refineError;
             bs.budgetBytes = config.maxMemoryBytes;
             bs.dilate = config.dilate;
+            bs.tracer = tracer.value().get();
             Result<BrickedOutcome> bricked = bakeBricked(scene, desc, desc.shOrder, bs, bake_batch);
             if (!bricked) {
                 return bricked.error();

@@ -8,6 +8,8 @@
 #include <glm/common.hpp>
 
 #include "probekit/formats/brick.hpp"
+#include "ray_tracer.hpp"
+#include "sampling.hpp"
 
 namespace probekit::baker {
 namespace {
@@ -347,6 +349,66 @@ uint64_t dilateLattice(Lattice& lattice, const std::vector<uint64_t>& used, uint
     return 0;
 }
 
+// Direct light from the scene's punctual lights at lattice points, computed on demand.
+class DirectField {
+public:
+    DirectField(const Scene& scene, const RayTracer* tracer, const Lattice& lattice,
+                sh::Order order)
+        : m_scene(scene), m_tracer(tracer), m_lattice(lattice), m_order(order) {}
+
+    const sh::ShRgb& at(glm::uvec3 u) {
+        const uint64_t key = m_lattice.key(u);
+        auto it = m_cache.find(key);
+        if (it != m_cache.end()) {
+            return it->second;
+        }
+        const glm::vec3 p = m_lattice.world(u);
+        sh::ShRgb value;
+        for (const PunctualLight& light : m_scene.lights) {
+            const std::optional<LightDirection> to_light = directionToLight(light, p);
+            if (!to_light || m_tracer->occluded(p, to_light->direction, to_light->distance)) {
+                continue;
+            }
+            value += sh::projectDelta(to_light->direction, light.irradianceAt(p), m_order);
+        }
+        return m_cache.emplace(key, value).first->second;
+    }
+
+    // RMS disagreement (relative to `scale`) between the brick's interpolation of its own
+    // direct light and the direct light at the finer lattice points of its region.
+    float disagreement(const Brick& b, uint32_t max_level, float scale) {
+        if (m_scene.lights.empty() || m_tracer == nullptr) {
+            return 0.0f;
+        }
+        std::vector<sh::ShRgb> own(kBrickProbeCount);
+        const auto own_points = regionPoints(b, max_level, 1);
+        for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
+            own[k] = at(own_points[k]);
+        }
+        constexpr uint32_t n = kBrickCells * 2 + 1;
+        const auto points = regionPoints(b, max_level, 2);
+        ErrorSum sum;
+        for (uint32_t k = 0; k < n * n * n; ++k) {
+            const glm::uvec3 q(k % n, (k / n) % n, k / (n * n));
+            if ((q.x % 2) + (q.y % 2) + (q.z % 2) == 0) {
+                continue;
+            }
+            sum.add(squaredDifference(brick::interpolate(own, glm::vec3(q) * 0.5f), at(points[k]),
+                                      m_order) /
+                        (double(scale) * scale),
+                    0.0);
+        }
+        return sum.rms();
+    }
+
+private:
+    const Scene& m_scene;
+    const RayTracer* m_tracer;
+    const Lattice& m_lattice;
+    sh::Order m_order;
+    std::unordered_map<uint64_t, sh::ShRgb> m_cache;
+};
+
 } // namespace
 
 uint64_t brickedGpuBytes(glm::uvec3 top_bricks, uint32_t max_level, uint64_t bricks,
@@ -453,7 +515,8 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
                 (double(scale) * scale);
             sum.add(e2, noise2 * (1.0 + squaredWeightSum(t)));
         }
-        n.predicted = sum.rms() / 9.0f;
+        // (1/3)^2 for the brick's 3x finer spacing in smooth light, 1/3 near surfaces.
+        n.predicted = sum.rms() / (reach.near(n.brick) ? 3.0f : 9.0f);
     }
 
     BrickedOutcome out;
@@ -461,20 +524,26 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
     for (size_t i = 0; i < nodes.size(); ++i) {
         frontier[i] = int(i);
     }
+    // The cheap pre-pass: direct light from punctual lights (one shadow ray per light, exact,
+    // no noise) on the finer lattice; its disagreement finds shadow edges, also in open air.
+    DirectField direct(scene, settings.tracer, lattice, order);
     for (uint32_t level = 0; level < max_level; ++level) {
         std::vector<int> candidates;
+        std::vector<float> direct_error;
         wanted.clear();
         for (int i : frontier) {
-            const Node& n = nodes[size_t(i)];
-            if (!(reach.near(n.brick) || n.predicted > threshold)) {
-                continue;
-            }
+            Node& n = nodes[size_t(i)];
             const auto own = regionPoints(n.brick, max_level, 1);
             if (std::none_of(own.begin(), own.end(),
                              [&](const glm::uvec3& u) { return lattice.valid(u); })) {
                 continue; // inside geometry: never spent on
             }
+            const float from_direct = direct.disagreement(n.brick, max_level, scale);
+            if (std::max(n.predicted, from_direct) <= threshold) {
+                continue;
+            }
             candidates.push_back(i);
+            direct_error.push_back(from_direct);
             const auto finer = regionPoints(n.brick, max_level, 2);
             wanted.insert(wanted.end(), finer.begin(), finer.end());
         }
@@ -482,21 +551,27 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
         dilate_all();
         out.refineCandidates += candidates.size();
         std::vector<int> next;
-        for (int i : candidates) {
+        for (size_t c = 0; c < candidates.size(); ++c) {
+            const int i = candidates[c];
             const Disagreement d =
                 measure(lattice, nodes[size_t(i)].brick, max_level, order, scale, noise2);
-            nodes[size_t(i)].measured = d.rms;
-            if (d.rms <= threshold) {
-                continue;
+            // The full bake's disagreement decides; the exact direct-light one is a floor
+            // under it (noise subtraction can only hide an edge the pre-pass sees exactly).
+            nodes[size_t(i)].measured = std::max(d.rms, direct_error[c]);
+            if (nodes[size_t(i)].measured <= threshold) {
+                continue; // the prediction was wrong: the finer probes stay unused
             }
             nodes[size_t(i)].firstChild = int(nodes.size());
             const Brick parent = nodes[size_t(i)].brick;
+            // Error falls with the square of the spacing in smooth light, but near surfaces
+            // (contact shading, occlusion) only about linearly.
+            const float decay = reach.near(parent) ? 2.0f : 4.0f;
             for (uint32_t o = 0; o < 8; ++o) {
                 Node child;
                 child.brick.level = uint8_t(level + 1);
                 child.brick.coord = parent.coord * 2u + glm::uvec3(o & 1, (o >> 1) & 1, o >> 2);
                 child.parent = i;
-                child.predicted = d.octant[o] / 4.0f;
+                child.predicted = d.octant[o] / decay;
                 next.push_back(int(nodes.size()));
                 nodes.push_back(child);
             }

@@ -14,6 +14,8 @@
 
 namespace probekit::baker {
 
+class RayTracer;
+
 // Bakes probes at world positions: fills sh[i] and valid[i] (kProbeValid / kProbeInvalid) for
 // positions[i], seeding each from ids[i] so that a probe's value depends only on its id.
 using ProbeBatchFn =
@@ -25,6 +27,8 @@ struct BrickedSettings {
     float refineError = 0.05f; // fraction of the volume's RMS irradiance
     uint64_t budgetBytes = ~uint64_t(0);
     bool dilate = true;
+    // Traces the direct-light pre-pass (shadow rays to punctual lights); null = no pre-pass.
+    const RayTracer* tracer = nullptr;
 };
 
 struct BrickedOutcome {
