@@ -228,10 +228,9 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
     choice.samples = uint32_t(std::clamp(std::ceil(wanted), 8.0, double(1u << 16)));
     choice.predictedNoise = choice.pilotNoise * std::sqrt(double(kPilotSamples) / choice.samples *
                                                           kInterpolatedVariance);
-    choice.interpolationBudget =
-        std::sqrt(std::max(target * target - choice.predictedNoise * choice.predictedNoise -
-                                     sh_error * sh_error,
-                                 0.04 * target * target));
+    choice.interpolationBudget = std::sqrt(std::max(
+        target * target - choice.predictedNoise * choice.predictedNoise - sh_error * sh_error,
+        0.04 * target * target));
 
     if (base.method == "path") {
         choice.config.path.samples = choice.samples;
