@@ -425,7 +425,6 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
     const glm::uvec3 top = desc.grid.resolution();
     Lattice lattice(desc, max_level, bake_batch);
     const GeometryReach reach(scene, desc, max_level);
-    const float threshold = settings.refineError;
 
     // Level 0: every brick, baked in one batch.
     std::vector<Node> nodes;
@@ -528,6 +527,10 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
     // no noise) on the finer lattice; its disagreement finds shadow edges, also in open air.
     DirectField direct(scene, settings.tracer, lattice, order);
     for (uint32_t level = 0; level < max_level; ++level) {
+        // A brick's share of the volume's squared error is its volume (1/8 per level) times
+        // its squared RMS error: splitting pays where that share exceeds a level-0 brick's at
+        // refine_error, so the threshold grows by sqrt(8) per level.
+        const float threshold = settings.refineError * std::pow(8.0f, 0.5f * float(level));
         std::vector<int> candidates;
         std::vector<float> direct_error;
         wanted.clear();

@@ -49,17 +49,22 @@ struct BrickedOutcome {
 // RMS irradiance (over its valid level-0 probes), RMS over points. Monte Carlo noise is
 // measured by baking up to 64 level-0 probes a second time with independent samples, and the
 // noise's expected share is subtracted from every squared disagreement.
-// Refinement rule (one level at a time, starting from every level-0 brick):
-//  * a brick is a candidate when geometry lies within its reach (a triangle's bounding box
-//    overlaps the brick's region grown by one of its probe spacings) or when its predicted
-//    interpolation error exceeds refineError, and it has at least one probe outside geometry;
-//  * a candidate's finer probes (the next level's lattice over its region) are baked for real
-//    and compared with the candidate's trilinear interpolation at them: the candidate is split
-//    when the RMS disagreement exceeds refineError (no cheap pre-pass: the test is the real
-//    bake of one level more, and its cost is part of the bake);
-//  * the predicted error of a brick is a quarter of what was measured on its region one level
-//    up (trilinear error falls with the square of the spacing); on level 0 it is a ninth of
-//    how far the brick's own probes stray from the interpolation of its 8 corners.
+// Refinement rule (one level at a time, starting from every level-0 brick; t_l =
+// refineError x sqrt(8)^l: a brick's share of the volume's squared error is its volume, 1/8
+// per level, times its squared error, so a level-l brick must be sqrt(8)^l times worse than a
+// level-0 one to be worth its 8 children):
+//  * prediction: the larger of (a) a cheap pre-pass, the direct light of the punctual lights
+//    (one shadow ray per light and point, exact, no noise) at the next level's lattice points
+//    against the brick's interpolation of its own, which finds shadow edges also in open air,
+//    and (b) the full bake's disagreement measured one level up on the brick's region, divided
+//    by 4 (trilinear error falls with the square of the spacing) or by 2 where geometry lies
+//    within the brick's reach (a triangle's bounding box overlaps the region grown by one probe
+//    spacing: contact shading falls about linearly); on level 0, (b) is how far the brick's own
+//    probes stray from the interpolation of its 8 corners, divided by 9 (3 near geometry);
+//  * a brick whose prediction exceeds t_l, and that has a probe outside geometry (bricks inside
+//    solids are never spent on), bakes its finer probes for real; it is split when the larger
+//    of the measured disagreement and (a) exceeds t_l. Otherwise its finer probes stay unused
+//    (their bake time is part of the bake).
 // The budget then merges the splits whose disagreement is smallest until the GPU bytes fit.
 Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, sh::Order order,
                                    const BrickedSettings& settings, const ProbeBatchFn& bake_batch);

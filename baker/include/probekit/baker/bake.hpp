@@ -58,9 +58,10 @@ struct VolumeConfig {
     // round_pow2(size * density / 3) (a brick spans 3 probe spacings).
     VolumeLayout layout = VolumeLayout::Dense;
     uint32_t maxLevel = 2; // bricked: finer levels allowed over level 0 (0..3), each 2x denser
-    // Bricked: a brick is split into 8 finer bricks when its interpolation at the finer probes
-    // disagrees with their baked irradiance by more than this fraction of the volume's RMS
-    // irradiance (the error measure of the bake's --target-error, see BakeConfig::targetError).
+    // Bricked: a level-0 brick is split into 8 finer bricks when its interpolation at the
+    // finer probes disagrees with their baked irradiance by more than this fraction of the
+    // volume's RMS irradiance (RMS over the brick); a level-l brick when it disagrees by more
+    // than sqrt(8)^l times this (equal shares of the volume's squared error; bricked.hpp).
     float refineError = 0.05f;
 };
 
