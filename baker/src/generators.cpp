@@ -286,7 +286,7 @@ Json buildGltf(const SceneSpec& s, const std::string& bin_name, std::vector<uint
 } // namespace
 
 std::vector<std::string> generatedSceneNames() {
-    return {"cornell", "thin-wall", "courtyard"};
+    return {"cornell", "thin-wall", "courtyard", "courtyard-overcast"};
 }
 
 Result<void> writeGeneratedScene(const std::string& name, const std::filesystem::path& path) {
@@ -297,9 +297,13 @@ Result<void> writeGeneratedScene(const std::string& name, const std::filesystem:
         spec = thinWall();
     } else if (name == "courtyard") {
         spec = courtyard();
+    } else if (name == "courtyard-overcast") {
+        spec = courtyard();
+        spec.suns.clear(); // lit by the bake's sky alone
     } else {
         return makeError(ErrorCode::InvalidArgument,
-                         "unknown scene '" + name + "' (known: cornell, thin-wall, courtyard)");
+                         "unknown scene '" + name +
+                             "' (known: cornell, thin-wall, courtyard, courtyard-overcast)");
     }
     std::filesystem::path bin_path = path;
     bin_path.replace_extension(".bin");

@@ -522,8 +522,8 @@ void addSceneCommand(CLI::App& app, Command& selected) {
         std::string output;
     };
     auto o = std::make_shared<Options>();
-    CLI::App* cmd = app.add_subcommand(
-        "scene", "Write one of the bundled generated scenes as glTF (cornell, thin-wall)");
+    CLI::App* cmd =
+        app.add_subcommand("scene", "Write one of the bundled generated scenes as glTF");
     cmd->add_option("NAME", o->name, "scene name")
         ->required()
         ->check(CLI::IsMember(baker::generatedSceneNames()));

@@ -18,6 +18,7 @@
 //              piece is a closed box (192 triangles). One directional sun of 3 W/m^2 x colour
 //              (1, 0.95, 0.85), 50 degrees up, shining from +z turned 30 degrees towards +x.
 //              No sky: environments are bake settings (examples/courtyard-bake.json).
+//   courtyard-overcast  The courtyard without its sun: lit by the bake's sky alone.
 #pragma once
 
 #include <filesystem>
