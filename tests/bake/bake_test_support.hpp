@@ -2,6 +2,8 @@
 // points, and table-driven config-error checks.
 #pragma once
 
+#include <unistd.h>
+
 #include <filesystem>
 #include <span>
 #include <string>
@@ -15,8 +17,10 @@
 namespace probekit::test {
 
 // A fresh, empty folder under the system temporary directory.
+// The process id keeps test processes that ctest -j runs at once out of each other's folders.
 inline std::filesystem::path tempDir(const std::string& name) {
-    auto dir = std::filesystem::temp_directory_path() / ("probekit_test_" + name);
+    auto dir = std::filesystem::temp_directory_path() /
+               ("probekit_test_" + name + "_" + std::to_string(::getpid()));
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
     return dir;
