@@ -4,6 +4,7 @@
 set -u
 pk=$1
 work=$2
+repo=$(cd "$(dirname "$0")/../.." && pwd)
 rm -rf "$work" && mkdir -p "$work" && cd "$work" || exit 1
 passed=0
 failed=0
@@ -41,6 +42,25 @@ expect 0 "wrote small.pvol" -- "$pk" bake cornell.gltf -o small.pvol --resolutio
 check "report names the bake figures" grep -q '"mrays_per_second"' report.json
 expect 0 "valid \(1 volume" -- "$pk" validate small.pvol
 expect 0 '"resolution": \[' -- "$pk" info small.pvol --json
+expect 0 "wrote courtyard.pvol" -- "$pk" bake courtyard.gltf -o courtyard.pvol \
+    --config "$repo/examples/courtyard-bake.json" --samples 8
+
+# Bricked volumes and error-driven settings.
+cat > bricked.json <<'JSON'
+{"path": {"samples": 16}, "volumes": [{"name": "box", "layout": "bricked", "levels": 2,
+  "refine_error": 0.05, "resolution": [2, 2, 2]}]}
+JSON
+expect 0 "bricks by level" -- "$pk" bake cornell.gltf -o bricked.pvol --config bricked.json
+expect 0 "bricked, 2x2x2 level-0 bricks" -- "$pk" info bricked.pvol
+expect 0 "valid \(1 volume" -- "$pk" validate bricked.pvol
+printf 'x,y,z,nx,ny,nz\n0.2,0.2,0.2,0,1,0\n' >points.csv
+expect 0 "^x,y,z,nx,ny,nz,r,g,b" -- "$pk" sample bricked.pvol --points points.csv
+expect 0 "verify: measured error" -- "$pk" bake cornell.gltf -o target.pvol \
+    --target-error 0.2 --verify --verify-points 32 --verify-samples 256
+echo '{"volumes": [{"layout": "bricked", "levels": 5}]}' >badlevels.json
+expect 1 "badlevels.json: volumes\[0\].levels" -- "$pk" bake cornell.gltf -o x.pvol \
+    --config badlevels.json
+check "a failed bake leaves no output" test ! -e x.pvol
 
 # Bad input: each names the file or field, exits 1, and leaves no output file.
 expect 1 "missing.gltf" -- "$pk" bake missing.gltf -o out1.pvol
