@@ -42,6 +42,13 @@ Result<VolumeError> compareVolumes(std::span<const Volume> test,
                                  "'): resolution differs from the reference volume '" +
                                  b.desc.name + "'");
         }
+        // Probe i must be the same place in both: bricked volumes need the same bricks.
+        if (a.desc.layout != b.desc.layout || a.desc.bricks != b.desc.bricks) {
+            return makeError(ErrorCode::InconsistentSize,
+                             "volume " + std::to_string(v) + " ('" + a.desc.name +
+                                 "'): layout or bricks differ from the reference volume '" +
+                                 b.desc.name + "' (compare bricked bakes with bake --verify)");
+        }
         for (size_t i = 0; i < a.probeCount(); ++i) {
             if (a.validity[i] != kProbeValid || b.validity[i] != kProbeValid) {
                 continue;

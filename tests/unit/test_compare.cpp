@@ -63,3 +63,26 @@ TEST(CompareVolumes, MismatchedGridsAreAnError) {
     auto count = runtime::compareVolumes(std::span(&a, 1), std::span<const Volume>());
     EXPECT_FALSE(count.ok());
 }
+
+TEST(CompareVolumes, BrickedVolumesWithOtherBricksAreAnError) {
+    // Same level-0 grid, different bricks: probe i is elsewhere in each, so comparing probe by
+    // probe would be meaningless (and index past the smaller volume).
+    auto bricked = [](uint32_t level) {
+        VolumeDesc d;
+        d.name = "b";
+        d.grid = grid::GridLayout({glm::vec3(0), glm::vec3(1)}, glm::uvec3(1),
+                                  grid::PositionMode::Center);
+        d.storage = Storage::Float32;
+        d.layout = VolumeLayout::Bricked;
+        d.bricks = brick::uniformLayout(glm::uvec3(1), level);
+        return makeVolume(d, std::vector<sh::ShRgb>(d.probeCount())).value();
+    };
+    const Volume coarse = bricked(0);
+    const Volume fine = bricked(1);
+    auto e = runtime::compareVolumes(std::span(&coarse, 1), std::span(&fine, 1));
+    ASSERT_FALSE(e.ok());
+    EXPECT_NE(e.error().message.find("layout or bricks differ"), std::string::npos);
+    auto same = runtime::compareVolumes(std::span(&fine, 1), std::span(&fine, 1));
+    ASSERT_TRUE(same.ok());
+    EXPECT_EQ(same.value().probesCompared, 8u * brick::kBrickProbeCount);
+}
