@@ -177,6 +177,24 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
     if (!descs) {
         return descs.error();
     }
+    // Level 0 covers the smooth light, where trilinear error grows with the square of the
+    // spacing: its spacing scales with sqrt(target / kDensityTarget) from the density rule's
+    // (which suits kDensityTarget); refinement adds the detail.
+    constexpr double kDensityTarget = 0.05;
+    const double spacing_scale = std::sqrt(target / kDensityTarget);
+    for (size_t i = 0; i < descs.value().size(); ++i) {
+        const glm::uvec3 top = descs.value()[i].grid.resolution();
+        glm::uvec3 chosen;
+        for (int a = 0; a < 3; ++a) {
+            const double bricks = double(top[a]) / spacing_scale;
+            chosen[a] = std::clamp(1u << uint32_t(std::max(0L, std::lround(std::log2(bricks)))), 1u,
+                                   grid::kMaxResolution);
+        }
+        choice.config.volumes[i].resolution = chosen;
+        descs.value()[i].grid =
+            grid::GridLayout(descs.value()[i].grid.bounds(), chosen, grid::PositionMode::Center,
+                             descs.value()[i].grid.frame());
+    }
 
     // Pilot: two independent estimates at 64 points.
     constexpr size_t kPilotPoints = 64;

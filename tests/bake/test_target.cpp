@@ -116,7 +116,7 @@ TEST(TargetError, UniformSkyChoosesL1AndTheFewestSamples) {
 // The claim of --target-error, end to end on the Cornell box: the measured error (the same
 // measure as --verify, against two independent 2048-direction path estimates at 256 points,
 // their own noise subtracted) lands within 1.5x of the target. Everything is seeded, so this
-// is a fixed number (0.0851 at target 0.1 when written), not a flaky one.
+// is a fixed number (0.0908 at target 0.1 when written), not a flaky one.
 TEST(TargetError, CornellLandsWithinOneAndAHalfTimesTheTarget) {
     const Scene scene = test::generatedScene("cornell");
     const double target = 0.1;

@@ -311,7 +311,9 @@ struct TargetChoice {
     double pilotSeconds = 0.0;
 };
 // Chooses settings so that the bake's error against a converged path reference is about
-// `target`: every volume becomes bricked (levels 3) with refine_error from the error budget;
+// `target`: every volume becomes bricked (levels 3) with refine_error from the error budget and
+// level-0 bricks from the density rule with the spacing scaled by sqrt(target / 0.05) (the
+// smooth light level 0 covers has trilinear error growing with the square of the spacing);
 // SH order L1 where band 2 carries less than 0.4 x target; the sample count so that the
 // interpolated Monte Carlo noise is half the target (from a pilot of two independent
 // estimates at 64 points). Budget: noise 0.5 t, band 2 (if dropped) <= 0.4 t, interpolation
