@@ -39,7 +39,7 @@ for res in "16 8 16" "32 16 32" "64 32 64" "128 64 128"; do
     config 6 "\"resolution\": [${res// /, }]"
     run sunny dense "${res// /x}"
 done
-for refine in 0.1 0.05 0.03 0.02; do
+for refine in 0.1 0.05 0.03; do
     config 6 "\"layout\": \"bricked\", \"resolution\": [8, 4, 8], \"levels\": 3, \"refine_error\": $refine"
     run sunny bricked "8x4x8 levels 3 refine $refine"
 done
@@ -47,7 +47,9 @@ for res in 16 32 64; do
     config 16 "\"resolution\": [$res, $res, $res]"
     run overcast dense "${res}x${res}x${res}"
 done
-for refine in 0.02 0.01 0.005; do
-    config 16 "\"layout\": \"bricked\", \"resolution\": [8, 8, 8], \"levels\": 3, \"refine_error\": $refine"
-    run overcast bricked "8x8x8 levels 3 refine $refine"
+for top in 2 4; do
+    for refine in 0.01 0.005 0.0025; do
+        config 16 "\"layout\": \"bricked\", \"resolution\": [$top, $top, $top], \"levels\": 3, \"refine_error\": $refine"
+        run overcast bricked "${top}x${top}x${top} levels 3 refine $refine"
+    done
 done
