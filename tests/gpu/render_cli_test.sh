@@ -51,6 +51,17 @@ expect 0 "validity view" -- "$pk" render cornell.gltf volume.pvol -o v.png --siz
 expect 0 '"shade_ms":.*"fetch_only_ms":|"fetch_only_ms":.*"shade_ms":' -- \
     "$pk" render cornell.gltf volume.pvol -o b.png --size 32,24 --bench 2
 
+# A bricked bake renders in every view; the probes view colours probes by brick level.
+cat >bricked.json <<'JSON'
+{"path": {"samples": 16}, "volumes": [{"name": "box", "layout": "bricked", "levels": 2,
+  "refine_error": 0.05, "resolution": [2, 2, 2]}]}
+JSON
+"$pk" bake cornell.gltf -o bricked.pvol --config bricked.json -q || exit 1
+expect 0 "wrote bp.png: 64x48, probes view" -- "$pk" render cornell.gltf bricked.pvol -o bp.png \
+    --size 64,48 --view probes --camera 0.3,0.3,-1,0.3,0.3,0.3 --fov 50
+expect 0 "wrote bs.png: 64x48, shaded view" -- "$pk" render cornell.gltf bricked.pvol -o bs.png \
+    --size 64,48
+
 expect 2 "png or .exr" -- "$pk" render cornell.gltf volume.pvol -o out.jpg
 check "no output for a bad extension" test ! -e out.jpg
 expect 2 "" -- "$pk" render cornell.gltf volume.pvol -o x.png --view nope
