@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# Dense against bricked volumes on the bundled courtyard at equal error. Two cases: "sunny"
-# (scene courtyard, the interior 16 x 6 x 16 m) and "overcast" (scene courtyard-overcast, the
-# interior and the open air above it, 16 x 16 x 16 m). Each is baked densely at several
-# resolutions and bricked at several refinement settings, all with the same samples per probe,
-# and every file is measured against the same path reference (probekit bake --verify, 1024
-# points). Writes CSV rows: case, layout, setting, seconds, gpu_bytes, rel_rmse.
+# Dense against bricked volumes on the bundled courtyard at equal error. Three cases: "sunny"
+# (scene courtyard, the interior 16 x 6 x 16 m), "overcast" (scene courtyard-overcast, the
+# interior and the open air above it, 16 x 16 x 16 m) and "overcast-tall" (16 x 32 x 16 m).
+# Each is baked densely at several resolutions and bricked at several refinement settings, all
+# with the same samples per probe, and every file is measured against the same path reference
+# (probekit bake --verify, 1024 points). Writes CSV rows: case, layout, setting, seconds,
+# gpu_bytes, rel_rmse.
 # Usage: tools/bench-bricked.sh [PROBEKIT] [OUT.csv] [SAMPLES]
 set -euo pipefail
 pk=${1:-build/tools/probekit}
@@ -52,4 +53,13 @@ for top in 2 4; do
         config 16 "\"layout\": \"bricked\", \"resolution\": [$top, $top, $top], \"levels\": 3, \"refine_error\": $refine"
         run overcast bricked "${top}x${top}x${top} levels 3 refine $refine"
     done
+done
+# The same overcast courtyard inside a 32 m tall volume: open air is ~80% of it.
+for res in "16 32 16" "32 64 32"; do
+    config 32 "\"resolution\": [${res// /, }]"
+    run overcast-tall dense "${res// /x}"
+done
+for refine in 0.005 0.0025; do
+    config 32 "\"layout\": \"bricked\", \"resolution\": [2, 4, 2], \"levels\": 3, \"refine_error\": $refine"
+    run overcast-tall bricked "2x4x2 levels 3 refine $refine"
 done
