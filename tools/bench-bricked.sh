@@ -24,8 +24,8 @@ config() { # $1 = top of the box (m), $2 = extra volume fields
                 "bounds": {"mode": "custom", "min": [-8, 0, -8], "max": [8, $1, 8]}, $2} ] }
 JSON
 }
-run() { # $1 case, $2 layout, $3 setting label
-    "$pk" bake "$work/$1.gltf" --config "$work/c.json" -o "$work/v.pvol" --verify \
+run() { # $1 case (its scene: the case without "-tall"), $2 layout, $3 setting label
+    "$pk" bake "$work/${1%-tall}.gltf" --config "$work/c.json" -o "$work/v.pvol" --verify \
         --verify-points 1024 --report "$work/r.json" -q
     /usr/bin/python3 - "$work/r.json" "$1" "$2" "$3" >> "$out" <<'PY'
 import json, sys
