@@ -24,6 +24,27 @@ constexpr uint32_t kPlaneElements = PK_MAX_VOLUMES * PK_MAX_PLANES;
 // Shader reads of the set may happen in any stage the application uses.
 constexpr VkPipelineStageFlags kAnyStage = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT;
 
+// The barriers around every upload: waits for every shader read submitted earlier
+// (write-after-read) and makes the image a transfer destination; `old_layout` UNDEFINED
+// discards its contents.
+void beginImageUpload(VkCommandBuffer cmd, VkImage image, VkImageLayout old_layout) {
+    detail::imageBarrier(cmd, image, VK_IMAGE_ASPECT_COLOR_BIT, old_layout,
+                         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, kAnyStage, 0,
+                         VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
+}
+
+// Copies staging-buffer regions into an image begun with beginImageUpload and hands it back
+// to shader reads.
+void finishImageUpload(VkCommandBuffer cmd, VkBuffer staging, VkImage image,
+                       std::span<const VkBufferImageCopy> regions) {
+    vkCmdCopyBufferToImage(cmd, staging, image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                           uint32_t(regions.size()), regions.data());
+    detail::imageBarrier(cmd, image, VK_IMAGE_ASPECT_COLOR_BIT,
+                         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                         VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                         VK_ACCESS_TRANSFER_WRITE_BIT, kAnyStage, VK_ACCESS_SHADER_READ_BIT);
+}
+
 VkFormat texelFormat(Storage storage) {
     return storage == Storage::Float32 ? VK_FORMAT_R32G32B32A32_SFLOAT
                                        : VK_FORMAT_R16G16B16A16_SFLOAT;
@@ -515,10 +536,7 @@ Result<void> GpuVolumeSet::Impl::upload(size_t index, VolumeState which, const V
     PK_TRY(context->submitAndWait([&](VkCommandBuffer cmd) {
         for (uint32_t p = 0; p < source.planes(); ++p) {
             const Image& image = state.planes[p];
-            // Waits for every shader read submitted earlier (write-after-read), then copies.
-            detail::imageBarrier(cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT, old_layout,
-                                 VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, kAnyStage, 0,
-                                 VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
+            beginImageUpload(cmd, image.image, old_layout);
             VkBufferImageCopy region{};
             region.bufferOffset = p * plane_bytes;
             region.bufferRowLength = 0; // tightly packed box
@@ -526,12 +544,7 @@ Result<void> GpuVolumeSet::Impl::upload(size_t index, VolumeState which, const V
             region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
             region.imageOffset = {int32_t(first.x), int32_t(first.y), int32_t(first.z)};
             region.imageExtent = {count.x, count.y, count.z};
-            vkCmdCopyBufferToImage(cmd, staging.buffer, image.image,
-                                   VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
-            detail::imageBarrier(
-                cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                VK_ACCESS_TRANSFER_WRITE_BIT, kAnyStage, VK_ACCESS_SHADER_READ_BIT);
+            finishImageUpload(cmd, staging.buffer, image.image, std::span(&region, 1));
         }
         // A replaced primary state may bring a new box, frame, fade or priority.
         if (dirty) {
@@ -590,12 +603,9 @@ Result<void> GpuVolumeSet::Impl::uploadBricked(size_t index, VolumeState which,
         const VkClearColorValue zero{};
         for (uint32_t p = 0; p < source.planes(); ++p) {
             const Image& image = state.planes[p];
-            // Waits for every shader read submitted earlier (write-after-read). Unused slots
-            // are cleared: a filter tap of weight 0 next to a slot must not read a NaN.
-            detail::imageBarrier(cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT,
-                                 VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                                 kAnyStage, 0, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                                 VK_ACCESS_TRANSFER_WRITE_BIT);
+            // Unused slots are cleared: a filter tap of weight 0 next to a slot must not read
+            // a NaN.
+            beginImageUpload(cmd, image.image, VK_IMAGE_LAYOUT_UNDEFINED);
             vkCmdClearColorImage(cmd, image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &zero, 1,
                                  &range);
             detail::imageBarrier(cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT,
@@ -614,30 +624,16 @@ Result<void> GpuVolumeSet::Impl::uploadBricked(size_t index, VolumeState which,
                 region.imageOffset = {int32_t(origin.x), int32_t(origin.y), int32_t(origin.z)};
                 region.imageExtent = {PK_BRICK_SIZE, PK_BRICK_SIZE, PK_BRICK_SIZE};
             }
-            vkCmdCopyBufferToImage(cmd, staging.buffer, image.image,
-                                   VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, uint32_t(brick_count),
-                                   regions.data());
-            detail::imageBarrier(
-                cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                VK_ACCESS_TRANSFER_WRITE_BIT, kAnyStage, VK_ACCESS_SHADER_READ_BIT);
+            finishImageUpload(cmd, staging.buffer, image.image, regions);
         }
         if (primary) {
             const Image& image = slot.indirection;
-            detail::imageBarrier(cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT,
-                                 VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                                 kAnyStage, 0, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                                 VK_ACCESS_TRANSFER_WRITE_BIT);
+            beginImageUpload(cmd, image.image, VK_IMAGE_LAYOUT_UNDEFINED);
             VkBufferImageCopy region{};
             region.bufferOffset = texel_bytes;
             region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
             region.imageExtent = image.extent;
-            vkCmdCopyBufferToImage(cmd, staging.buffer, image.image,
-                                   VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
-            detail::imageBarrier(
-                cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                VK_ACCESS_TRANSFER_WRITE_BIT, kAnyStage, VK_ACCESS_SHADER_READ_BIT);
+            finishImageUpload(cmd, staging.buffer, image.image, std::span(&region, 1));
         }
         if (dirty) {
             recordUniforms(cmd);
