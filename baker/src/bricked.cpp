@@ -7,6 +7,7 @@
 
 #include <glm/common.hpp>
 
+#include "irradiance_error.hpp"
 #include "probekit/formats/brick.hpp"
 #include "ray_tracer.hpp"
 #include "sampling.hpp"
@@ -18,9 +19,6 @@ using brick::Brick;
 using brick::kBrickCells;
 using brick::kBrickProbeCount;
 using brick::kBrickSize;
-
-const glm::vec3 kAxisNormals[6] = {{1, 0, 0},  {-1, 0, 0}, {0, 1, 0},
-                                   {0, -1, 0}, {0, 0, 1},  {0, 0, -1}};
 
 struct Node {
     Brick brick;
@@ -122,15 +120,7 @@ std::vector<glm::uvec3> regionPoints(const Brick& b, uint32_t max_level, uint32_
 
 // Mean over the six axis normals and the three channels of (E_a(n) - E_b(n))^2.
 double squaredDifference(const sh::ShRgb& a, const sh::ShRgb& b, sh::Order order) {
-    sh::ShRgb d = b;
-    d *= -1.0f;
-    d += a;
-    double sum = 0.0;
-    for (const glm::vec3& n : kAxisNormals) {
-        const glm::vec3 e = sh::irradiance(d, order, n);
-        sum += double(glm::dot(e, e));
-    }
-    return sum / 18.0;
+    return squaredAxisIrradianceDifference(a, b, order) / 18.0;
 }
 
 // Sum of squared trilinear weights at brick-local coordinates: how much of one probe's noise

@@ -6,15 +6,13 @@
 #include <cmath>
 #include <thread>
 
+#include "irradiance_error.hpp"
 #include "path_integrator.hpp"
 #include "probekit/baker/bake.hpp"
 #include "ray_tracer.hpp"
 
 namespace probekit::baker {
 namespace {
-
-const glm::vec3 kAxisNormals[6] = {{1, 0, 0},  {-1, 0, 0}, {0, 1, 0},
-                                   {0, -1, 0}, {0, 0, 1},  {0, 0, -1}};
 
 // Volume index reserved for reference and pilot estimates, so that their sample sequences
 // never coincide with a volume's probes.
@@ -28,23 +26,6 @@ double radicalInverse(uint64_t i, uint32_t base) {
         factor *= inverse;
     }
     return result;
-}
-
-// Sum over the six axis normals and three channels of E(n)^2 for the SH difference a - b
-// (b may be null: E(a)^2).
-double squaredIrradiance(const sh::ShRgb& a, const sh::ShRgb* b, sh::Order order) {
-    sh::ShRgb d = a;
-    if (b) {
-        sh::ShRgb negative = *b;
-        negative *= -1.0f;
-        d += negative;
-    }
-    double sum = 0.0;
-    for (const glm::vec3& n : kAxisNormals) {
-        const glm::vec3 e = sh::irradiance(d, order, n);
-        sum += double(glm::dot(e, e));
-    }
-    return sum;
 }
 
 sh::ShRgb mean(const sh::ShRgb& a, const sh::ShRgb& b) {
@@ -143,7 +124,7 @@ estimateError(const std::function<glm::vec3(glm::vec3 point, glm::vec3 normal)>&
             reference2 += double(glm::dot(r, r));
         }
         // Var(mean of two) = E|a - b|^2 / 4.
-        noise2 += 0.25 * squaredIrradiance(ref_a.sh[i], &ref_b.sh[i], sh::Order::L2);
+        noise2 += 0.25 * squaredAxisIrradianceDifference(ref_a.sh[i], ref_b.sh[i], sh::Order::L2);
         ++e.points;
     }
     if (reference2 > 0.0) {
@@ -219,9 +200,10 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
             l1.rgb[k] = glm::vec3(0.0f);
         }
         // One estimate's variance: E|a - b|^2 / 2.
-        noise2 += 0.5 * squaredIrradiance(a.value().sh[i], &b.value().sh[i], sh::Order::L2);
-        reference2 += squaredIrradiance(m, nullptr, sh::Order::L2);
-        band2 += squaredIrradiance(m, &l1, sh::Order::L2);
+        noise2 +=
+            0.5 * squaredAxisIrradianceDifference(a.value().sh[i], b.value().sh[i], sh::Order::L2);
+        reference2 += squaredAxisIrradiance(m, sh::Order::L2);
+        band2 += squaredAxisIrradianceDifference(m, l1, sh::Order::L2);
         ++choice.pilotPoints;
     }
     if (choice.pilotPoints == 0 || !(reference2 > 0.0)) {
