@@ -60,6 +60,23 @@ inline baker::BakeConfig probesAt(const std::vector<glm::vec3>& points, float ha
     return c;
 }
 
+// An open sky of constant radiance `sky` and nothing else nearby: a bake needs geometry for its
+// ray tracer, so one 1 cm triangle sits ~170 m away (it hides ~3e-9 sr of the sky).
+inline baker::Scene openSky(glm::vec3 sky) {
+    baker::Scene scene;
+    scene.materials.push_back(baker::Material{});
+    scene.positions = {glm::vec3(100.0f), glm::vec3(100.01f, 100.0f, 100.0f),
+                       glm::vec3(100.0f, 100.01f, 100.0f)};
+    scene.uvs.assign(3, glm::vec2(0.0f));
+    scene.triangles = {glm::uvec3(0, 1, 2)};
+    scene.triangleMaterial = {0};
+    scene.triangleNode = {-1};
+    scene.bounds = {glm::vec3(100.0f), glm::vec3(100.01f, 100.01f, 100.0f)};
+    scene.environment.type = baker::Environment::Type::Constant;
+    scene.environment.constant = sky;
+    return scene;
+}
+
 // Each JSON config must be rejected with a message containing `expect`.
 struct ConfigErrorCase {
     const char* json;

@@ -625,20 +625,9 @@ TEST(BrickedBake, BricksInsideTheTallBlockAreNeverRefined) {
 // for refinement, and E(n) = pi L.
 TEST(BrickedBake, UniformSkyDoesNotRefine) {
     const auto start = std::chrono::steady_clock::now();
-    // One 1 cm triangle 170 m away (a bake needs geometry for its ray tracer): it hides
-    // ~3e-9 sr of the sky, far below anything measured here.
-    Scene scene;
-    scene.materials.push_back(Material{});
-    scene.positions = {glm::vec3(100.0f), glm::vec3(100.01f, 100.0f, 100.0f),
-                       glm::vec3(100.0f, 100.01f, 100.0f)};
-    scene.uvs.assign(3, glm::vec2(0.0f));
-    scene.triangles = {glm::uvec3(0, 1, 2)};
-    scene.triangleMaterial = {0};
-    scene.triangleNode = {-1};
-    scene.bounds = {glm::vec3(100.0f), glm::vec3(100.01f, 100.01f, 100.0f)};
+    // The sky's one far triangle hides ~3e-9 sr, far below anything measured here.
     const glm::vec3 sky(0.5f, 1.0f, 2.0f);
-    scene.environment.type = Environment::Type::Constant;
-    scene.environment.constant = sky;
+    const Scene scene = test::openSky(sky);
     constexpr uint32_t kSamples = 64;
     const VolumeConfig v =
         brickedVolume(glm::vec3(-1.0f), glm::vec3(1.0f), glm::uvec3(2), 2, 0.05f);

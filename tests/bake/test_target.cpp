@@ -89,17 +89,7 @@ TEST(TargetError, BudgetSplitsTheTargetBetweenNoiseBandTwoAndInterpolation) {
 
 TEST(TargetError, UniformSkyChoosesL1AndTheFewestSamples) {
     // A constant sky and one tiny triangle far away: no noise, nothing in band 2.
-    Scene scene;
-    scene.materials.push_back(Material{});
-    scene.positions = {glm::vec3(100.0f), glm::vec3(100.01f, 100.0f, 100.0f),
-                       glm::vec3(100.0f, 100.01f, 100.0f)};
-    scene.uvs.assign(3, glm::vec2(0.0f));
-    scene.triangles = {glm::uvec3(0, 1, 2)};
-    scene.triangleMaterial = {0};
-    scene.triangleNode = {-1};
-    scene.bounds = {glm::vec3(100.0f), glm::vec3(100.01f, 100.01f, 100.0f)};
-    scene.environment.type = Environment::Type::Constant;
-    scene.environment.constant = glm::vec3(1.0f);
+    const Scene scene = test::openSky(glm::vec3(1.0f));
     BakeConfig config;
     VolumeConfig v;
     v.bounds.mode = BoundsMode::Custom;
