@@ -97,7 +97,9 @@ struct Volume {
     size_t texelBytes() const {
         return size_t(planes()) * probeCount() * 4 * bytesPerComponent(desc.storage);
     }
-    // Bytes the runtime holds on the GPU: texels plus, for bricked volumes, the u32 indirection.
+    // Bytes of the volume's GPU data: texels plus, for bricked volumes, the u32 indirection.
+    // (runtime::GpuVolumeSet rounds a brick atlas's slot count up to a power of two, so its
+    // allocation can hold up to twice these texels.)
     size_t gpuBytes() const { return texelBytes() + indirection.size() * sizeof(uint32_t); }
     size_t validCount() const;
 
