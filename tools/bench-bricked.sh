@@ -55,7 +55,7 @@ for top in 2 4; do
     done
 done
 # The same overcast courtyard inside a 32 m tall volume: open air is ~80% of it.
-for res in "16 32 16" "32 64 32"; do
+for res in "16 32 16" "32 64 32" "64 128 64"; do
     config 32 "\"resolution\": [${res// /, }]"
     run overcast-tall dense "${res// /x}"
 done
