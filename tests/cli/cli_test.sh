@@ -57,6 +57,8 @@ printf 'x,y,z,nx,ny,nz\n0.2,0.2,0.2,0,1,0\n' >points.csv
 expect 0 "^x,y,z,nx,ny,nz,r,g,b" -- "$pk" sample bricked.pvol --points points.csv
 expect 0 "verify: measured error" -- "$pk" bake cornell.gltf -o target.pvol \
     --target-error 0.2 --verify --verify-points 32 --verify-samples 256
+expect 1 "bricked.json: volumes\[0\].layout: bench compares dense grids" -- \
+    "$pk" bench cornell.gltf --config bricked.json --out bench.csv --quick
 echo '{"volumes": [{"layout": "bricked", "levels": 5}]}' >badlevels.json
 expect 1 "badlevels.json: volumes\[0\].levels" -- "$pk" bake cornell.gltf -o x.pvol \
     --config badlevels.json

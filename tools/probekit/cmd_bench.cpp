@@ -307,6 +307,18 @@ int runBench(const BenchOptions& o) {
     if (base.volumes.empty()) {
         base.volumes.push_back(baker::VolumeConfig{});
     }
+    if (base.targetError) {
+        return fail(o.config + ": target_error: bench sweeps the settings itself; remove it");
+    }
+    for (size_t i = 0; i < base.volumes.size(); ++i) {
+        // The metric compares probe by probe against a reference of the same grids; a bricked
+        // volume's bricks depend on the bake, so no two runs share their probes.
+        if (base.volumes[i].layout == VolumeLayout::Bricked) {
+            return fail(o.config + ": volumes[" + std::to_string(i) +
+                        "].layout: bench compares dense grids probe by probe; measure bricked "
+                        "volumes with `probekit bake --verify` (or tools/bench-bricked.sh)");
+        }
+    }
     // Every bake is float L2; the four storage variants are packed from it (kVariants).
     for (baker::VolumeConfig& v : base.volumes) {
         v.storage = Storage::Float32;
