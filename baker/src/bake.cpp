@@ -344,7 +344,6 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     if (volume_configs.empty()) {
         volume_configs.push_back(VolumeConfig{});
     }
-    std::vector<VolumeDesc> baked_descs = descs.value();
     std::atomic<uint64_t> rays{0};
     std::atomic<uint64_t> cut_total{0};
 
@@ -495,7 +494,6 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
             if (!volume) {
                 return volume.error();
             }
-            baked_descs[vi] = b.desc;
             result.file.volumes.push_back(std::move(volume).value());
             continue;
         }

@@ -573,23 +573,24 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
     }
 
     // The budget: merge the cheapest splits (all of whose children are leaves) until it fits.
-    auto is_leaf = [&](int i) { return nodes[size_t(i)].firstChild < 0; };
-    auto count_leaves = [&] {
-        return uint64_t(std::count_if(nodes.begin(), nodes.end(),
-                                      [](const Node& n) { return n.firstChild < 0; }));
-    };
-    // Nodes removed by merging are marked with parent = -2 and skipped from then on.
+    // Leaves are counted per level, so the bytes (which depend on the deepest level in use)
+    // cost nothing to recompute after each merge. Nodes removed by merging are marked with
+    // parent = -2 and skipped from then on.
+    uint64_t leaves_at[brick::kMaxLevel + 1] = {};
+    for (const Node& n : nodes) {
+        leaves_at[n.brick.level] += n.firstChild < 0;
+    }
     auto deepest = [&] {
-        uint32_t d = 0;
-        for (const Node& n : nodes) {
-            if (n.parent != -2 && n.firstChild < 0) {
-                d = std::max<uint32_t>(d, n.brick.level);
-            }
+        uint32_t d = max_level;
+        while (d > 0 && leaves_at[d] == 0) {
+            --d;
         }
         return d;
     };
-    uint64_t leaves = count_leaves();
-    auto bytes = [&] { return brickedGpuBytes(top, deepest(), leaves, order, desc.storage); };
+    auto bytes = [&] {
+        const uint64_t leaves = leaves_at[0] + leaves_at[1] + leaves_at[2] + leaves_at[3];
+        return brickedGpuBytes(top, deepest(), leaves, order, desc.storage);
+    };
     if (bytes() > settings.budgetBytes) {
         using Entry = std::pair<float, int>;
         std::priority_queue<Entry, std::vector<Entry>, std::greater<>> heap;
@@ -599,7 +600,7 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
                 return false;
             }
             for (int c = 0; c < 8; ++c) {
-                if (!is_leaf(n.firstChild + c)) {
+                if (nodes[size_t(n.firstChild + c)].firstChild >= 0) {
                     return false;
                 }
             }
@@ -619,8 +620,8 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
                 nodes[size_t(n.firstChild + c)].firstChild = -1;
             }
             n.firstChild = -1;
-            leaves -= 7;
-            // The merged children no longer count as leaves: count_leaves would see them.
+            leaves_at[n.brick.level + 1] -= 8;
+            leaves_at[n.brick.level] += 1;
             ++out.budgetDropped;
             out.budgetError = std::max(out.budgetError, double(error));
             if (n.parent >= 0 && mergeable(n.parent)) {
@@ -668,7 +669,6 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
         sum_e2 += w * e * e;
     }
     out.predictedError = sum_w > 0.0 ? std::sqrt(sum_e2 / sum_w) : 0.0;
-    out.noise = float(std::sqrt(noise2));
 
     // Re-express every leaf on the lattice of the deepest level actually used.
     const uint32_t used_level = deepest();

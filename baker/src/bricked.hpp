@@ -40,7 +40,6 @@ struct BrickedOutcome {
     uint64_t budgetDropped = 0;
     double budgetError = 0.0;
     double predictedError = 0.0; // RMS interpolation error, fraction of RMS irradiance
-    float noise = 0.0f;          // one probe's RMS Monte Carlo noise, same units
     uint64_t invalidProbes = 0;  // lattice points inside geometry among those written
     std::vector<std::string> warnings;
 };

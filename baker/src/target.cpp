@@ -172,9 +172,6 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
                                    grid::kMaxResolution);
         }
         choice.config.volumes[i].resolution = chosen;
-        descs.value()[i].grid =
-            grid::GridLayout(descs.value()[i].grid.bounds(), chosen, grid::PositionMode::Center,
-                             descs.value()[i].grid.frame());
     }
 
     // Pilot: two independent estimates at 64 points.
@@ -195,10 +192,7 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
             continue;
         }
         const sh::ShRgb m = mean(a.value().sh[i], b.value().sh[i]);
-        sh::ShRgb l1 = m;
-        for (int k = 4; k < 9; ++k) {
-            l1.rgb[k] = glm::vec3(0.0f);
-        }
+        const sh::ShRgb l1 = sh::truncateToL1(m);
         // One estimate's variance: E|a - b|^2 / 2.
         noise2 +=
             0.5 * squaredAxisIrradianceDifference(a.value().sh[i], b.value().sh[i], sh::Order::L2);
