@@ -39,7 +39,6 @@ Result<std::vector<uint32_t>> buildIndirection(glm::uvec3 top_bricks, const Bric
         return makeError(ErrorCode::OutOfRange, label + ": too many bricks");
     }
     constexpr uint32_t kUncovered = std::numeric_limits<uint32_t>::max();
-    std::vector<uint32_t> indirection(size_t(cell_count), kUncovered);
     for (size_t i = 0; i < layout.bricks.size(); ++i) {
         const Brick& b = layout.bricks[i];
         if (b.level > layout.maxLevel) {
@@ -54,18 +53,30 @@ Result<std::vector<uint32_t>> buildIndirection(glm::uvec3 top_bricks, const Bric
                                  std::to_string(level_grid.x) + "x" + std::to_string(level_grid.y) +
                                  "x" + std::to_string(level_grid.z) + " grid");
         }
+    }
+    // Coarse bricks first: a finer brick then overwrites the cells it covers, so every cell
+    // ends up naming the deepest brick over it. Same-level regions coincide or are disjoint, so
+    // meeting an entry of the same level means the brick is listed twice.
+    std::vector<uint32_t> order(layout.bricks.size());
+    std::iota(order.begin(), order.end(), 0u);
+    std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+        return layout.bricks[a].level < layout.bricks[b].level;
+    });
+    std::vector<uint32_t> indirection(size_t(cell_count), kUncovered);
+    for (const uint32_t i : order) {
+        const Brick& b = layout.bricks[i];
         const uint32_t span = 1u << (layout.maxLevel - b.level);
         const glm::uvec3 first = b.coord * span;
         for (uint32_t z = first.z; z < first.z + span; ++z) {
             for (uint32_t y = first.y; y < first.y + span; ++y) {
                 for (uint32_t x = first.x; x < first.x + span; ++x) {
                     uint32_t& entry = indirection[x + size_t(cells.x) * (y + size_t(cells.y) * z)];
-                    if (entry != kUncovered) {
+                    if (entry != kUncovered && layout.bricks[entry].level == b.level) {
                         return makeError(ErrorCode::InconsistentSize,
-                                         label + ": " + brickText(i, b) + " overlaps brick " +
+                                         label + ": " + brickText(i, b) + " repeats brick " +
                                              std::to_string(entry));
                     }
-                    entry = uint32_t(i);
+                    entry = i;
                 }
             }
         }
@@ -78,7 +89,7 @@ Result<std::vector<uint32_t>> buildIndirection(glm::uvec3 top_bricks, const Bric
             return makeError(ErrorCode::InconsistentSize,
                              label + ": finest cell " + std::to_string(x) + "," +
                                  std::to_string(y) + "," + std::to_string(z) +
-                                 " is covered by no brick (the bricks must tile the box)");
+                                 " is covered by no brick");
         }
     }
     return indirection;
@@ -132,41 +143,65 @@ void stitchBorders(glm::uvec3 top_bricks, const BrickLayout& layout,
     const glm::uvec3 cells = finestCells(top_bricks, layout.maxLevel);
     assert(indirection.size() == size_t(cells.x) * cells.y * cells.z);
     assert(probes.size() == layout.bricks.size() * kBrickProbeCount);
-    // Ascending level, then index: every brick a probe may be replaced from is final by then.
-    std::vector<uint32_t> order(layout.bricks.size());
-    std::iota(order.begin(), order.end(), 0u);
-    std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
-        return layout.bricks[a].level < layout.bricks[b].level;
-    });
     const auto precedes = [&](uint32_t a, uint32_t b) {
         const uint8_t level_a = layout.bricks[a].level, level_b = layout.bricks[b].level;
         return level_a < level_b || (level_a == level_b && a < b);
     };
+    // Per level l and level-l region: the first brick (by `precedes`) that shows anywhere in it.
+    constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+    std::vector<std::vector<uint32_t>> first_shown(layout.maxLevel + 1);
+    for (uint32_t l = 0; l <= layout.maxLevel; ++l) {
+        const glm::uvec3 regions = top_bricks * (1u << l);
+        const uint32_t shift = layout.maxLevel - l;
+        std::vector<uint32_t>& first = first_shown[l];
+        first.assign(size_t(regions.x) * regions.y * regions.z, kNone);
+        for (uint32_t z = 0; z < cells.z; ++z) {
+            for (uint32_t y = 0; y < cells.y; ++y) {
+                for (uint32_t x = 0; x < cells.x; ++x) {
+                    const uint32_t shown =
+                        indirection[x + size_t(cells.x) * (y + size_t(cells.y) * z)];
+                    uint32_t& entry = first[(x >> shift) +
+                                            size_t(regions.x) *
+                                                ((y >> shift) + size_t(regions.y) * (z >> shift))];
+                    if (entry == kNone || precedes(shown, entry)) {
+                        entry = shown;
+                    }
+                }
+            }
+        }
+    }
+    // Ascending level, then index: every brick a probe may be replaced from is final by then.
+    std::vector<uint32_t> order(layout.bricks.size());
+    std::iota(order.begin(), order.end(), 0u);
+    std::sort(order.begin(), order.end(), precedes);
     const auto on_face = [](uint32_t i) { return i == 0 || i == kBrickCells; };
     for (const uint32_t self : order) {
         const Brick& own = layout.bricks[self];
+        const glm::uvec3 regions = top_bricks * (1u << own.level);
+        const uint32_t region_points = kBrickCells << (layout.maxLevel - own.level);
+        const std::vector<uint32_t>& first = first_shown[own.level];
         for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
             const glm::uvec3 local(k % kBrickSize, (k / kBrickSize) % kBrickSize,
                                    k / (kBrickSize * kBrickSize));
             if (!on_face(local.x) && !on_face(local.y) && !on_face(local.z)) {
                 continue;
             }
-            // The point in thirds of a finest cell (exact integers): on a cell border along an
-            // axis when divisible by 3, and then the cells on both sides touch it.
+            // The regions of the brick's level around the point (on a region border along an
+            // axis, those on both sides).
             const glm::uvec3 lattice = latticeCoord(own, local, layout.maxLevel);
-            glm::uvec3 first, last;
+            glm::uvec3 lo, hi;
             for (int a = 0; a < 3; ++a) {
-                const uint32_t cell = lattice[a] / kBrickCells;
-                const bool on_border = lattice[a] % kBrickCells == 0;
-                first[a] = on_border && cell > 0 ? cell - 1 : cell;
-                last[a] = std::min(cell, cells[a] - 1);
+                const uint32_t region = lattice[a] / region_points;
+                const bool on_border = lattice[a] % region_points == 0;
+                lo[a] = on_border && region > 0 ? region - 1 : region;
+                hi[a] = std::min(region, regions[a] - 1);
             }
             uint32_t source = self;
-            for (uint32_t z = first.z; z <= last.z; ++z) {
-                for (uint32_t y = first.y; y <= last.y; ++y) {
-                    for (uint32_t x = first.x; x <= last.x; ++x) {
+            for (uint32_t z = lo.z; z <= hi.z; ++z) {
+                for (uint32_t y = lo.y; y <= hi.y; ++y) {
+                    for (uint32_t x = lo.x; x <= hi.x; ++x) {
                         const uint32_t other =
-                            indirection[x + size_t(cells.x) * (y + size_t(cells.y) * z)];
+                            first[x + size_t(regions.x) * (y + size_t(regions.y) * z)];
                         if (precedes(other, source)) {
                             source = other;
                         }

@@ -530,7 +530,7 @@ private:
         const glm::uvec3 top = desc.grid.resolution();
         if (brick_count < uint64_t(top.x) * top.y * top.z) {
             fail(ErrorCode::InconsistentSize, context,
-                 std::to_string(brick_count) + " bricks cannot tile the " + resolutionText(top) +
+                 std::to_string(brick_count) + " bricks cannot cover the " + resolutionText(top) +
                      " level-0 grid (every level-0 region needs a brick)");
         }
         requireBytes(brick_count * brick::kBrickProbeCount,

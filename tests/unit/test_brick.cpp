@@ -1,4 +1,4 @@
-// The bricked layout (brick.hpp): the indirection and its tiling checks, the sampling rule
+// The bricked layout (brick.hpp): the indirection and its layout checks (nested bricks too), the sampling rule
 // (locate + interpolate) and border stitching, which is what makes the field seamless.
 #include "probekit/formats/brick.hpp"
 
@@ -66,6 +66,21 @@ BrickLayout mixedLayout() {
         }
     }
     bricks.push_back({glm::uvec3(0, 0, 1), 0});
+    return BrickLayout{kMixedMaxLevel, bricks};
+}
+
+// The same top bricks, nested: all four level-0 bricks, plus finer bricks over some octants
+// only (the level-0 brick still shows in the rest of its region):
+//   top (0,0,0): level-1 (0,0,0), (1,0,0) and (1,1,1); under (1,0,0), level-2 (3,0,0) and
+//     (2,1,1), which meet level-1 (1,1,1) along an edge and level-0 top (1,0,0) on a face;
+//   top (1,0,1): level-1 (2,0,2) and (3,1,3), touching only along an edge.
+BrickLayout nestedLayout() {
+    std::vector<Brick> bricks = {
+        {glm::uvec3(3, 0, 0), 2}, {glm::uvec3(1, 0, 0), 0}, {glm::uvec3(1, 0, 0), 1},
+        {glm::uvec3(0, 0, 0), 0}, {glm::uvec3(2, 0, 2), 1}, {glm::uvec3(0, 0, 1), 0},
+        {glm::uvec3(1, 1, 1), 1}, {glm::uvec3(2, 1, 1), 2}, {glm::uvec3(1, 0, 1), 0},
+        {glm::uvec3(0, 0, 0), 1}, {glm::uvec3(3, 1, 3), 1},
+    };
     return BrickLayout{kMixedMaxLevel, bricks};
 }
 
@@ -194,6 +209,42 @@ TEST(BrickIndirection, MixedLayoutEntriesNameTheCoveringBrick) {
     }
 }
 
+TEST(BrickIndirection, NestedLayoutEntriesNameTheDeepestCoveringBrick) {
+    const BrickLayout layout = nestedLayout();
+    const std::vector<uint32_t> indirection = mustBuild(kMixedTop, layout);
+    const glm::uvec3 cells = finestCells(kMixedTop, kMixedMaxLevel);
+    ASSERT_EQ(indirection.size(), 256u);
+    EXPECT_EQ(indirection[cellIndex(cells, {0, 0, 0})], findBrick(layout, {0, 0, 0}, 1));
+    EXPECT_EQ(indirection[cellIndex(cells, {0, 2, 0})], findBrick(layout, {0, 0, 0}, 0))
+        << "an octant without a finer brick shows the level-0 brick";
+    EXPECT_EQ(indirection[cellIndex(cells, {3, 0, 0})], findBrick(layout, {3, 0, 0}, 2));
+    EXPECT_EQ(indirection[cellIndex(cells, {2, 0, 0})], findBrick(layout, {1, 0, 0}, 1));
+    EXPECT_EQ(indirection[cellIndex(cells, {7, 3, 7})], findBrick(layout, {3, 1, 3}, 1));
+    std::vector<uint32_t> shown_cells(layout.bricks.size(), 0);
+    for (uint32_t z = 0; z < cells.z; ++z) {
+        for (uint32_t y = 0; y < cells.y; ++y) {
+            for (uint32_t x = 0; x < cells.x; ++x) {
+                int deepest = -1;
+                for (uint32_t b = 0; b < layout.bricks.size(); ++b) {
+                    const uint32_t span = 1u << (kMixedMaxLevel - layout.bricks[b].level);
+                    if (glm::uvec3(x, y, z) / span == layout.bricks[b].coord &&
+                        (deepest < 0 || layout.bricks[b].level > layout.bricks[deepest].level)) {
+                        deepest = int(b);
+                    }
+                }
+                ASSERT_GE(deepest, 0);
+                EXPECT_EQ(indirection[cellIndex(cells, {x, y, z})], uint32_t(deepest))
+                    << x << "," << y << "," << z;
+                ++shown_cells[indirection[cellIndex(cells, {x, y, z})]];
+            }
+        }
+    }
+    // Level-0 (0,0,0) covers 64 cells; its level-1 octants take 3 x 8 of them.
+    EXPECT_EQ(shown_cells[findBrick(layout, {0, 0, 0}, 0)], 64u - 24u);
+    EXPECT_EQ(shown_cells[findBrick(layout, {1, 0, 0}, 1)], 8u - 2u);
+    EXPECT_EQ(shown_cells[findBrick(layout, {1, 0, 1}, 0)], 64u - 16u);
+}
+
 void expectRejected(glm::uvec3 top, const BrickLayout& layout, ErrorCode code,
                     const std::string& fragment) {
     const auto built = buildIndirection(top, layout, "volume 'hall'");
@@ -230,12 +281,11 @@ TEST(BrickIndirection, RejectsCoordOutsideItsLevel) {
                    "brick 5 (level 1, coord 1,2,0): coord outside the level's 4x2x2 grid");
 }
 
-TEST(BrickIndirection, RejectsOverlap) {
-    // A level-0 brick over the region of level-1 bricks 0..7 (x < 2), which remain.
+TEST(BrickIndirection, RejectsARepeatedBrick) {
     BrickLayout layout = uniformLayout({2, 1, 1}, 1);
-    layout.bricks.push_back({glm::uvec3(0, 0, 0), 0});
+    layout.bricks.push_back({glm::uvec3(1, 1, 0), 1}); // brick 5 again
     expectRejected({2, 1, 1}, layout, ErrorCode::InconsistentSize,
-                   "brick 16 (level 0, coord 0,0,0) overlaps brick 0");
+                   "brick 16 (level 1, coord 1,1,0) repeats brick 5");
 }
 
 TEST(BrickIndirection, RejectsGap) {
@@ -398,24 +448,45 @@ TEST(BrickStitch, MixedLevelsBecomeContinuous) {
     }
 }
 
-TEST(BrickStitch, AgreeingUniformLayoutIsUnchanged) {
-    const glm::uvec3 top(2, 2, 1);
-    const BrickLayout layout = uniformLayout(top, 1);
-    const std::vector<uint32_t> indirection = mustBuild(top, layout);
-    // Values depend only on the position, so neighbours already share their border probes.
-    const std::vector<sh::ShRgb> probes =
-        probesFromField(layout, [](glm::uvec3 lattice, size_t variant) {
-            return 2.0f * unitFloat(cellIndex({64, 64, 64}, lattice) * 32 + variant) - 1.0f;
-        });
-    std::vector<sh::ShRgb> stitched = probes;
-    stitchBorders(top, layout, indirection, stitched);
-    EXPECT_EQ(stitched, probes);
+TEST(BrickStitch, NestedLayoutsBecomeContinuous) {
+    // The hand-made nested layout, then random ones: every level-0 brick, then each level-1
+    // and level-2 region's brick with probability 3/8, independently (a level-2 brick need not
+    // have a level-1 parent).
+    const float bound = 2.0f * 3.0f * 2.0f * kBorderOffset + kFloatSlack; // as above
+    float worst = 0.0f;
+    for (uint64_t trial = 0; trial <= 24; ++trial) {
+        BrickLayout layout = nestedLayout();
+        if (trial > 0) {
+            layout = BrickLayout{kMixedMaxLevel, uniformLayout(kMixedTop, 0).bricks};
+            for (uint32_t level = 1; level <= kMixedMaxLevel; ++level) {
+                for (const Brick& b : uniformLayout(kMixedTop, level).bricks) {
+                    if ((mix(trial * 1000 + layout.bricks.size() * 7 + level) & 7) < 3) {
+                        layout.bricks.push_back(b);
+                    }
+                }
+            }
+        }
+        const std::vector<uint32_t> indirection = mustBuild(kMixedTop, layout);
+        const std::vector<sh::ShRgb> raw = randomProbes(layout.bricks.size(), trial);
+        std::vector<sh::ShRgb> probes = raw;
+        stitchBorders(kMixedTop, layout, indirection, probes);
+        size_t samples = 0;
+        const float jump = largestBorderJump(layout, indirection, probes, trial, &samples);
+        EXPECT_LE(jump, bound) << "trial " << trial << ", " << layout.bricks.size() << " bricks";
+        worst = std::max(worst, jump);
+        if (trial == 0) {
+            EXPECT_GT(largestBorderJump(layout, indirection, raw, trial, &samples), 100.0f * bound)
+                << "unstitched data should show seams";
+        }
+    }
+    std::printf("[          ] 25 nested layouts: largest border jump %.3g (bound %.3g)\n",
+                double(worst), double(bound));
 }
 
-TEST(BrickStitch, GloballyTrilinearFieldIsUnchanged) {
-    // A field trilinear over the whole box is what every brick interpolates exactly, so the
-    // coarse neighbours' interpolation at a border probe is the probe's own value.
-    const BrickLayout layout = mixedLayout();
+// Largest change stitching makes to a field trilinear over the whole box, which is what every
+// brick interpolates exactly, so the coarse neighbours' interpolation at a border probe is the
+// probe's own value.
+float stitchChangeOfGlobalTrilinearField(const BrickLayout& layout) {
     const std::vector<uint32_t> indirection = mustBuild(kMixedTop, layout);
     const glm::vec3 lattice_points = glm::vec3(finestCells(kMixedTop, kMixedMaxLevel) * 3u);
     const std::vector<sh::ShRgb> probes =
@@ -429,7 +500,12 @@ TEST(BrickStitch, GloballyTrilinearFieldIsUnchanged) {
     for (size_t p = 0; p < probes.size(); ++p) {
         largest = std::max(largest, maxAbsDifference(stitched[p], probes[p]));
     }
-    EXPECT_LE(largest, kTrilinearTolerance);
+    return largest;
+}
+
+TEST(BrickStitch, GloballyTrilinearFieldIsUnchanged) {
+    EXPECT_LE(stitchChangeOfGlobalTrilinearField(mixedLayout()), kTrilinearTolerance);
+    EXPECT_LE(stitchChangeOfGlobalTrilinearField(nestedLayout()), kTrilinearTolerance);
 }
 
 } // namespace

@@ -917,7 +917,7 @@ TEST_F(PvolRejectBricked, AbsurdBrickCount) {
 TEST_F(PvolRejectBricked, FewerBricksThanLevel0Regions) {
     // One brick (then the rest of the list read as validity count) for a 2 x 1 x 1 top grid.
     expectFieldRejected<uint64_t>(&VolumeOffsets::brickCount, 0, 1, ErrorCode::InconsistentSize,
-                                  "1 bricks cannot tile the 2x1x1 level-0 grid");
+                                  "1 bricks cannot cover the 2x1x1 level-0 grid");
 }
 
 TEST_F(PvolRejectBricked, BrickLevelAboveMaxLevel) {
@@ -931,11 +931,11 @@ TEST_F(PvolRejectBricked, CoordOutOfRange) {
         "brick 0 (level 0, coord 0,1,0): coord outside the level's 2x1x1 grid");
 }
 
-TEST_F(PvolRejectBricked, Overlap) {
+TEST_F(PvolRejectBricked, RepeatedBrick) {
     // Brick 3 (level 1, (3,0,0)) moved onto brick 7 (level 1, (3,1,0)).
     expectFieldRejected<uint32_t>(&VolumeOffsets::bricks, brickField(3, 2), 1,
                                   ErrorCode::InconsistentSize,
-                                  "brick 7 (level 1, coord 3,1,0) overlaps brick 3");
+                                  "brick 7 (level 1, coord 3,1,0) repeats brick 3");
 }
 
 TEST_F(PvolRejectBricked, Gap) {

@@ -4,23 +4,28 @@
 // The volume box (VolumeDesc::grid bounds and frame) is cut into
 //   topBricks = VolumeDesc::grid.resolution()      (powers of two, 1..256 per axis)
 // level-0 regions. A region at level l splits into 2 x 2 x 2 regions at level l + 1, down to
-// level maxLevel (<= kMaxLevel = 3). The *leaves* of this octree tile the box exactly; each
-// leaf holds one brick of 4 x 4 x 4 probes at the corners of a 3 x 3 x 3 cell lattice over its
-// region, so probes sit on the region's faces and neighbouring bricks hold copies of the same
-// border probes. Each level is 2x denser than the one above it (probe spacing
-// region size / 3, halved per level), and a level's probe lattice contains every coarser
-// level's lattice.
+// level maxLevel (<= kMaxLevel = 3). A brick holds 4 x 4 x 4 probes at the corners of a
+// 3 x 3 x 3 cell lattice over one region, so probes sit on the region's faces and
+// neighbouring bricks hold copies of the same border probes. Each level is 2x denser than the
+// one above it (probe spacing region size / 3, halved per level), and a level's probe lattice
+// contains every coarser level's lattice.
 //
-// Continuity (no seams): same-level neighbours share their border probes, so trilinear
-// interpolation agrees on the shared face. Where a brick borders a coarser one, the baker
-// "stitches" the finer brick's border probes to the coarser brick's interpolation at those
-// points; trilinear interpolation of samples of a piecewise-trilinear function on a nested
-// lattice reproduces it, so the field is continuous across level borders too.
+// Bricks nest: a layout lists bricks at any levels, and at every point the deepest brick whose
+// region contains it is the one that shows. A refined region therefore needs only the finer
+// bricks of the octants that gain from them; the coarser brick still shows in the rest of its
+// region. (A layout whose bricks tile the box without nesting is the special case where each
+// brick shows everywhere in its region.) Every point of the box must lie in some brick, and no
+// brick may be listed twice.
 //
-// Finest cells: the box split into N = topBricks * 2^maxLevel cells per axis (a leaf at level
+// Continuity (no seams): where two bricks that show meet, the finer one's border probes are
+// "stitched" to the coarser brick's interpolation at those points (same-level neighbours share
+// their border probes). Trilinear interpolation of samples of a piecewise-trilinear function
+// on a nested lattice reproduces it, so the field is continuous across brick and level borders.
+//
+// Finest cells: the box split into N = topBricks * 2^maxLevel cells per axis (a brick at level
 // l covers 2^(maxLevel - l) finest cells per axis). The indirection maps every finest cell
-// (x fastest) to the index of the leaf covering it; this is what the runtime uploads as its
-// indirection texture, and buildIndirection is also the tiling check.
+// (x fastest) to the index of the deepest brick covering it; this is what the runtime uploads
+// as its indirection texture, and buildIndirection is also the layout check.
 //
 // Probe data of a bricked Volume: probeCount() = bricks.size() * 64; probe k belongs to brick
 // k / 64, at brick-local (x, y, z) with k % 64 = x + 4 * (y + 4 * z). Texel planes and validity
@@ -55,7 +60,7 @@ struct Brick {
 
 struct BrickLayout {
     uint32_t maxLevel = 0;     // deepest level the layout may use (sets the indirection size)
-    std::vector<Brick> bricks; // the leaves, in any order; each one's probes are 64 in a row
+    std::vector<Brick> bricks; // in any order; each one's probes are 64 in a row
     friend bool operator==(const BrickLayout&, const BrickLayout&) = default;
 };
 
@@ -74,10 +79,11 @@ inline glm::uvec3 latticeCoord(const Brick& b, glm::uvec3 local, uint32_t max_le
 }
 
 // Checks the layout against the volume's level-0 brick grid and builds the indirection:
-// one entry per finest cell (x fastest) holding the covering brick's index. Fails, naming
-// `label` and the brick, when maxLevel > kMaxLevel, the finest cell count exceeds
-// kMaxFinestCells, a brick's level exceeds maxLevel, its coord lies outside its level's grid,
-// two bricks overlap, or a finest cell is left uncovered.
+// one entry per finest cell (x fastest) holding the index of the deepest brick covering it.
+// Fails, naming `label` and the brick, when maxLevel > kMaxLevel, the finest cell count
+// exceeds kMaxFinestCells, a brick's level exceeds maxLevel, its coord lies outside its
+// level's grid, a brick repeats another (same level and coord), or a finest cell is covered
+// by no brick.
 Result<std::vector<uint32_t>> buildIndirection(glm::uvec3 top_bricks, const BrickLayout& layout,
                                                const std::string& label);
 
@@ -102,8 +108,9 @@ BrickSample locate(glm::uvec3 top_bricks, const BrickLayout& layout,
 sh::ShRgb interpolate(std::span<const sh::ShRgb> brick_probes, glm::vec3 local);
 
 // Makes the bricked field continuous (see the top of this file). Visits bricks by ascending
-// level, then index; for every probe on its brick's boundary, finds the bricks that touch that
-// point and takes the one of lowest level (ties: lowest index); when that is another brick,
+// level, then index; for every probe on its brick's boundary, finds the bricks that show (by
+// the indirection) in the finest cells touching that point and takes the one of lowest level
+// (ties: lowest index), or the brick itself if it precedes them; when that is another brick,
 // the probe is replaced by the other brick's interpolation at the point. Coarser bricks and
 // earlier same-level bricks are final before any brick reads them, so the result does not
 // depend on anything but the layout. `probes` holds 64 per brick (brick order, as stored).

@@ -116,7 +116,7 @@ sh::ShRgb unpackProbe(const glm::vec4* texels, sh::Order order);
 // Builds a volume from per-probe coefficients (grid order, or brick order for bricked volumes)
 // and validity (empty = all valid). Fails, naming the volume and the offending probe or value,
 // when:
-//  * a bricked layout does not tile the box (brick::buildIndirection);
+//  * a bricked layout fails brick::buildIndirection (a gap, a repeated brick, ...);
 //  * probes.size() or validity.size() differs from desc.probeCount();
 //  * a coefficient is NaN or infinite;
 //  * storage is Float16 and a coefficient's magnitude exceeds kHalfMax (the message gives the
