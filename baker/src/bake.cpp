@@ -475,6 +475,8 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
             bs.budgetBytes = config.maxMemoryBytes;
             bs.dilate = config.dilate;
             bs.tracer = tracer.value().get();
+            bs.nudge = config.nudge;
+            bs.backfaceThreshold = config.backfaceThreshold;
             Result<BrickedOutcome> bricked = bakeBricked(scene, desc, desc.shOrder, bs, bake_batch);
             if (!bricked) {
                 return bricked.error();
@@ -489,6 +491,7 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
             result.stats.predictedInterpolationError =
                 std::max(result.stats.predictedInterpolationError, b.predictedError);
             result.stats.invalidProbes += b.invalidProbes;
+            result.stats.nudgedProbes += b.nudgedProbes;
             result.warnings.insert(result.warnings.end(), b.warnings.begin(), b.warnings.end());
             Result<Volume> volume = makeVolume(b.desc, b.probes, b.validity);
             if (!volume) {

@@ -23,20 +23,27 @@ using brick::kBrickSize;
 struct Node {
     Brick brick;
     int parent = -1;
-    int firstChild = -1;    // children are 8 consecutive nodes (x fastest)
+    int children[8] = {-1, -1, -1, -1, -1, -1, -1, -1}; // kept finer bricks per octant
     float predicted = 0.0f; // predicted interpolation error before testing
     // RMS disagreement at the finer probes, noise taken out; < 0 = not tested.
     float measured = -1.0f;
+    float octant[8] = {}; // the same per octant (the region of the finer brick there)
+    float gain = 0.0f;    // the parent's disagreement in this brick's octant: what it removes
+    bool removed = false; // dropped by the budget
 };
 
 // The baked probes, one per lattice point of the finest level (3 * finest cells + 1 points per
 // axis), baked on demand.
 class Lattice {
 public:
-    Lattice(const VolumeDesc& desc, uint32_t max_level, const ProbeBatchFn& bake_batch)
-        : m_desc(desc), m_bake(bake_batch) {
+    Lattice(const VolumeDesc& desc, uint32_t max_level, const ProbeBatchFn& bake_batch,
+            const RayTracer* tracer, float backface_threshold)
+        : m_desc(desc), m_bake(bake_batch), m_tracer(tracer),
+          m_backfaceThreshold(backface_threshold) {
         m_cells = brick::finestCells(desc.grid.resolution(), max_level);
         m_points = m_cells * kBrickCells + 1u;
+        const glm::vec3 spacing = desc.grid.bounds().size() / glm::vec3(m_cells * kBrickCells);
+        m_spacing = std::min({spacing.x, spacing.y, spacing.z});
     }
 
     uint64_t key(glm::uvec3 u) const {
@@ -75,7 +82,9 @@ public:
         std::vector<sh::ShRgb> sh(keys.size());
         std::vector<uint8_t> valid(keys.size());
         m_bake(positions, keys, sh, valid);
+        const std::vector<uint8_t> nudged = nudge(positions, keys, sh, valid);
         for (size_t i = 0; i < keys.size(); ++i) {
+            m_nudged.push_back(nudged[i]);
             m_index.emplace(keys[i], uint32_t(m_sh.size()));
             m_sh.push_back(sh[i]);
             m_valid.push_back(valid[i]);
@@ -86,13 +95,103 @@ public:
     uint32_t index(glm::uvec3 u) const { return m_index.at(key(u)); }
     const sh::ShRgb& sh(glm::uvec3 u) const { return m_sh[index(u)]; }
     bool valid(glm::uvec3 u) const { return m_valid[index(u)] == kProbeValid; }
+    bool nudged(uint64_t key) const { return m_nudged[m_index.at(key)] != 0; }
     std::vector<sh::ShRgb>& allSh() { return m_sh; }
     std::vector<uint8_t>& allValid() { return m_valid; }
     const std::unordered_map<uint64_t, uint32_t>& indexMap() const { return m_index; }
 
 private:
+    // Lattice points lie on the box faces, and a box is often placed against walls and floors:
+    // such a probe sits on a surface, where half its rays start inside the solid and it bakes
+    // invalid. Rather than dilate it from probes a whole spacing away, it is baked again just
+    // outside: at the first of 26 directions (axes, then edges, then corners) and distances
+    // (1/32 and 1/8 of the finest spacing) whose own test rays see few enough back faces.
+    // Probes deeper inside than that stay invalid (and are dilated as before).
+    // Returns 1 for each probe that was moved.
+    std::vector<uint8_t> nudge(std::span<const glm::vec3> positions,
+                               std::span<const uint64_t> keys, std::span<sh::ShRgb> sh,
+                               std::span<uint8_t> valid) {
+        std::vector<uint8_t> nudged(keys.size(), 0);
+        if (m_tracer == nullptr) {
+            return nudged;
+        }
+        static const std::vector<glm::vec3> directions = [] {
+            std::vector<glm::vec3> out;
+            for (int axes = 1; axes <= 3; ++axes) {
+                for (int n = 0; n < 27; ++n) {
+                    const glm::ivec3 d(n % 3 - 1, (n / 3) % 3 - 1, n / 9 - 1);
+                    if (std::abs(d.x) + std::abs(d.y) + std::abs(d.z) == axes) {
+                        out.push_back(glm::normalize(glm::vec3(d)));
+                    }
+                }
+            }
+            return out;
+        }();
+        const float radii[] = {m_spacing / 32.0f, m_spacing / 8.0f};
+        // Back-face share of the rays from q in the 26 directions.
+        auto backfaces = [&](glm::vec3 q) {
+            int back = 0;
+            for (const glm::vec3& d : directions) {
+                const std::optional<Hit> hit = m_tracer->intersect(q, d);
+                back += hit && hit->backFace;
+            }
+            return float(back) / float(directions.size());
+        };
+        std::vector<glm::vec3> moved;
+        std::vector<uint64_t> moved_keys;
+        std::vector<size_t> slots;
+        for (size_t i = 0; i < keys.size(); ++i) {
+            if (valid[i] == kProbeValid) {
+                continue;
+            }
+            const glm::vec3 p = positions[i];
+            // Deep inside (every direction runs further than the largest radius before it
+            // leaves the solid): no candidate can be outside.
+            bool near_surface = false;
+            for (const glm::vec3& d : directions) {
+                const std::optional<Hit> hit = m_tracer->intersect(p, d, radii[1]);
+                near_surface |= !hit.has_value() || !hit->backFace || hit->t <= radii[1];
+                if (near_surface) {
+                    break;
+                }
+            }
+            if (!near_surface) {
+                continue;
+            }
+            for (const float r : radii) {
+                const auto it = std::find_if(directions.begin(), directions.end(), [&](glm::vec3 d) {
+                    return backfaces(p + r * d) <= m_backfaceThreshold;
+                });
+                if (it != directions.end()) {
+                    moved.push_back(p + r * *it);
+                    moved_keys.push_back(keys[i]);
+                    slots.push_back(i);
+                    break;
+                }
+            }
+        }
+        if (moved.empty()) {
+            return nudged;
+        }
+        std::vector<sh::ShRgb> moved_sh(moved.size());
+        std::vector<uint8_t> moved_valid(moved.size());
+        m_bake(moved, moved_keys, moved_sh, moved_valid);
+        for (size_t j = 0; j < moved.size(); ++j) {
+            if (moved_valid[j] == kProbeValid) {
+                sh[slots[j]] = moved_sh[j];
+                valid[slots[j]] = kProbeValid;
+                nudged[slots[j]] = 1;
+            }
+        }
+        return nudged;
+    }
+
     const VolumeDesc& m_desc;
     const ProbeBatchFn& m_bake;
+    const RayTracer* m_tracer;
+    float m_backfaceThreshold;
+    float m_spacing = 0.0f;
+    std::vector<uint8_t> m_nudged; // per baked point, like m_sh
     glm::uvec3 m_cells;
     glm::uvec3 m_points;
     std::unordered_map<uint64_t, uint32_t> m_index;
@@ -153,6 +252,35 @@ struct Disagreement {
     float octant[8] = {};
 };
 
+// Accumulates one point of a brick's finer lattice (q in 0..6 per axis) into the total and into
+// every octant (finer brick region) it lies in: border points count for several.
+struct OctantSums {
+    ErrorSum total;
+    ErrorSum octants[8];
+    void add(glm::uvec3 q, double squared_error, double squared_noise) {
+        total.add(squared_error, squared_noise);
+        constexpr uint32_t half = kBrickCells; // 0..3 in the low octant, 3..6 in the high one
+        for (uint32_t o = 0; o < 8; ++o) {
+            const glm::uvec3 hi(o & 1, (o >> 1) & 1, o >> 2);
+            bool inside = true;
+            for (int a = 0; a < 3; ++a) {
+                inside &= hi[a] ? q[a] >= half : q[a] <= half;
+            }
+            if (inside) {
+                octants[o].add(squared_error, squared_noise);
+            }
+        }
+    }
+    Disagreement result() const {
+        Disagreement d;
+        d.rms = total.rms();
+        for (int o = 0; o < 8; ++o) {
+            d.octant[o] = octants[o].rms();
+        }
+        return d;
+    }
+};
+
 // Compares the brick's trilinear interpolation with baked values at the finer lattice points
 // of its region (those that are not its own probes). Points inside geometry are skipped (their
 // values are dilated, not lit); the brick's own probes inside geometry take part with their
@@ -168,8 +296,7 @@ Disagreement measure(const Lattice& lattice, const Brick& b, uint32_t max_level,
     constexpr uint32_t kSub = 2;
     constexpr uint32_t n = kBrickCells * kSub + 1;
     const std::vector<glm::uvec3> points = regionPoints(b, max_level, kSub);
-    ErrorSum total;
-    ErrorSum octants[8];
+    OctantSums sums;
     const double inv_scale2 = 1.0 / (double(scale) * scale);
     for (uint32_t z = 0; z < n; ++z) {
         for (uint32_t y = 0; y < n; ++y) {
@@ -183,29 +310,11 @@ Disagreement measure(const Lattice& lattice, const Brick& b, uint32_t max_level,
                 const double e2 =
                     squaredDifference(brick::interpolate(own, local), lattice.sh(u), order) *
                     inv_scale2;
-                const double expected_noise = noise2 * (1.0 + squaredWeightSum(local));
-                total.add(e2, expected_noise);
-                // Octants: the child regions the point belongs to (border points to several).
-                constexpr uint32_t half = n / 2; // 0..half in the low child, half..n-1 high
-                for (uint32_t o = 0; o < 8; ++o) {
-                    const glm::uvec3 hi(o & 1, (o >> 1) & 1, o >> 2);
-                    bool inside = true;
-                    for (int a = 0; a < 3; ++a) {
-                        inside &= hi[a] ? q[a] >= half : q[a] <= half;
-                    }
-                    if (inside) {
-                        octants[o].add(e2, expected_noise);
-                    }
-                }
+                sums.add(q, e2, noise2 * (1.0 + squaredWeightSum(local)));
             }
         }
     }
-    Disagreement d;
-    d.rms = total.rms();
-    for (int o = 0; o < 8; ++o) {
-        d.octant[o] = octants[o].rms();
-    }
-    return d;
+    return sums.result();
 }
 
 // For each level, which regions have a triangle's bounding box within one probe spacing.
@@ -365,10 +474,11 @@ public:
     }
 
     // RMS disagreement (relative to `scale`) between the brick's interpolation of its own
-    // direct light and the direct light at the finer lattice points of its region.
-    float disagreement(const Brick& b, uint32_t max_level, float scale) {
+    // direct light and the direct light at the finer lattice points of its region, in all and
+    // per octant.
+    Disagreement disagreement(const Brick& b, uint32_t max_level, float scale) {
         if (m_scene.lights.empty() || m_tracer == nullptr) {
-            return 0.0f;
+            return {};
         }
         std::vector<sh::ShRgb> own(kBrickProbeCount);
         const auto own_points = regionPoints(b, max_level, 1);
@@ -377,18 +487,19 @@ public:
         }
         constexpr uint32_t n = kBrickCells * 2 + 1;
         const auto points = regionPoints(b, max_level, 2);
-        ErrorSum sum;
+        OctantSums sums;
         for (uint32_t k = 0; k < n * n * n; ++k) {
             const glm::uvec3 q(k % n, (k / n) % n, k / (n * n));
             if ((q.x % 2) + (q.y % 2) + (q.z % 2) == 0) {
                 continue;
             }
-            sum.add(squaredDifference(brick::interpolate(own, glm::vec3(q) * 0.5f), at(points[k]),
-                                      m_order) /
-                        (double(scale) * scale),
-                    0.0);
+            sums.add(q,
+                     squaredDifference(brick::interpolate(own, glm::vec3(q) * 0.5f), at(points[k]),
+                                       m_order) /
+                         (double(scale) * scale),
+                     0.0);
         }
-        return sum.rms();
+        return sums.result();
     }
 
 private:
@@ -413,7 +524,8 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
                                    const ProbeBatchFn& bake_batch) {
     const uint32_t max_level = settings.maxLevel;
     const glm::uvec3 top = desc.grid.resolution();
-    Lattice lattice(desc, max_level, bake_batch);
+    Lattice lattice(desc, max_level, bake_batch, settings.nudge ? settings.tracer : nullptr,
+                    settings.backfaceThreshold);
     const GeometryReach reach(scene, desc, max_level);
 
     // Level 0: every brick, baked in one batch.
@@ -451,9 +563,9 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
     double noise2 = 0.0;
     {
         constexpr size_t kNoiseProbes = 64;
-        std::vector<glm::uvec3> valid_points;
+        std::vector<glm::uvec3> valid_points; // baked where they are (not nudged)
         for (const glm::uvec3& u : wanted) {
-            if (lattice.valid(u)) {
+            if (lattice.valid(u) && !lattice.nudged(lattice.key(u))) {
                 valid_points.push_back(u);
             }
         }
@@ -517,12 +629,13 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
     // no noise) on the finer lattice; its disagreement finds shadow edges, also in open air.
     DirectField direct(scene, settings.tracer, lattice, order);
     for (uint32_t level = 0; level < max_level; ++level) {
-        // A brick's share of the volume's squared error is its volume (1/8 per level) times
-        // its squared RMS error: splitting pays where that share exceeds a level-0 brick's at
-        // refine_error, so the threshold grows by sqrt(8) per level.
+        // Every stored brick costs the same bytes; a finer brick removes about its volume
+        // (1/8 per level) times the squared disagreement in its octant from the volume's
+        // squared error. It is kept where that exceeds a fixed price per brick, which means
+        // where its octant's disagreement exceeds refine_error x sqrt(8)^level.
         const float threshold = settings.refineError * std::pow(8.0f, 0.5f * float(level));
         std::vector<int> candidates;
-        std::vector<float> direct_error;
+        std::vector<Disagreement> direct_error;
         wanted.clear();
         for (int i : frontier) {
             Node& n = nodes[size_t(i)];
@@ -531,8 +644,10 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
                              [&](const glm::uvec3& u) { return lattice.valid(u); })) {
                 continue; // inside geometry: never spent on
             }
-            const float from_direct = direct.disagreement(n.brick, max_level, scale);
-            if (std::max(n.predicted, from_direct) <= threshold) {
+            const Disagreement from_direct = direct.disagreement(n.brick, max_level, scale);
+            const float most_direct =
+                *std::max_element(std::begin(from_direct.octant), std::end(from_direct.octant));
+            if (std::max(n.predicted, most_direct) <= threshold) {
                 continue;
             }
             candidates.push_back(i);
@@ -550,21 +665,26 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
                 measure(lattice, nodes[size_t(i)].brick, max_level, order, scale, noise2);
             // The full bake's disagreement decides; the exact direct-light one is a floor
             // under it (noise subtraction can only hide an edge the pre-pass sees exactly).
-            nodes[size_t(i)].measured = std::max(d.rms, direct_error[c]);
-            if (nodes[size_t(i)].measured <= threshold) {
-                continue; // the prediction was wrong: the finer probes stay unused
+            Node& n = nodes[size_t(i)];
+            n.measured = std::max(d.rms, direct_error[c].rms);
+            for (int o = 0; o < 8; ++o) {
+                n.octant[o] = std::max(d.octant[o], direct_error[c].octant[o]);
             }
-            nodes[size_t(i)].firstChild = int(nodes.size());
-            const Brick parent = nodes[size_t(i)].brick;
             // Error falls with the square of the spacing in smooth light, but near surfaces
             // (contact shading, occlusion) only about linearly.
-            const float decay = reach.near(parent) ? 2.0f : 4.0f;
+            const float decay = reach.near(n.brick) ? 2.0f : 4.0f;
+            const Brick parent = n.brick;
             for (uint32_t o = 0; o < 8; ++o) {
+                if (nodes[size_t(i)].octant[o] <= threshold) {
+                    continue; // the parent's interpolation is good enough there
+                }
                 Node child;
                 child.brick.level = uint8_t(level + 1);
                 child.brick.coord = parent.coord * 2u + glm::uvec3(o & 1, (o >> 1) & 1, o >> 2);
                 child.parent = i;
-                child.predicted = d.octant[o] / decay;
+                child.gain = nodes[size_t(i)].octant[o];
+                child.predicted = child.gain / decay;
+                nodes[size_t(i)].children[o] = int(nodes.size());
                 next.push_back(int(nodes.size()));
                 nodes.push_back(child);
             }
@@ -572,60 +692,53 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
         frontier = std::move(next);
     }
 
-    // The budget: merge the cheapest splits (all of whose children are leaves) until it fits.
-    // Leaves are counted per level, so the bytes (which depend on the deepest level in use)
-    // cost nothing to recompute after each merge. Nodes removed by merging are marked with
-    // parent = -2 and skipped from then on.
-    uint64_t leaves_at[brick::kMaxLevel + 1] = {};
+    // The budget: drop the finer bricks whose removal costs the least error (volume times
+    // squared gain) until it fits; a brick goes only after its own finer bricks. Stored bricks
+    // are counted per level, so the bytes (which depend on the deepest level in use) cost
+    // nothing to recompute after each removal.
+    uint64_t stored_at[brick::kMaxLevel + 1] = {};
     for (const Node& n : nodes) {
-        leaves_at[n.brick.level] += n.firstChild < 0;
+        ++stored_at[n.brick.level];
     }
     auto deepest = [&] {
         uint32_t d = max_level;
-        while (d > 0 && leaves_at[d] == 0) {
+        while (d > 0 && stored_at[d] == 0) {
             --d;
         }
         return d;
     };
     auto bytes = [&] {
-        const uint64_t leaves = leaves_at[0] + leaves_at[1] + leaves_at[2] + leaves_at[3];
-        return brickedGpuBytes(top, deepest(), leaves, order, desc.storage);
+        const uint64_t stored = stored_at[0] + stored_at[1] + stored_at[2] + stored_at[3];
+        return brickedGpuBytes(top, deepest(), stored, order, desc.storage);
     };
     if (bytes() > settings.budgetBytes) {
-        using Entry = std::pair<float, int>;
+        using Entry = std::pair<double, int>;
         std::priority_queue<Entry, std::vector<Entry>, std::greater<>> heap;
-        auto mergeable = [&](int i) {
+        auto removable = [&](int i) {
             const Node& n = nodes[size_t(i)];
-            if (n.firstChild < 0) {
-                return false;
-            }
-            for (int c = 0; c < 8; ++c) {
-                if (nodes[size_t(n.firstChild + c)].firstChild >= 0) {
-                    return false;
-                }
-            }
-            return true;
+            return n.brick.level > 0 && !n.removed &&
+                   std::all_of(std::begin(n.children), std::end(n.children),
+                               [&](int c) { return c < 0 || nodes[size_t(c)].removed; });
+        };
+        auto cost = [&](int i) {
+            const Node& n = nodes[size_t(i)];
+            return std::ldexp(double(n.gain) * n.gain, -3 * int(n.brick.level));
         };
         for (size_t i = 0; i < nodes.size(); ++i) {
-            if (nodes[i].parent != -2 && mergeable(int(i))) {
-                heap.emplace(nodes[i].measured, int(i));
+            if (removable(int(i))) {
+                heap.emplace(cost(int(i)), int(i));
             }
         }
         while (bytes() > settings.budgetBytes && !heap.empty()) {
-            const auto [error, i] = heap.top();
+            const int i = heap.top().second;
             heap.pop();
             Node& n = nodes[size_t(i)];
-            for (int c = 0; c < 8; ++c) {
-                nodes[size_t(n.firstChild + c)].parent = -2;
-                nodes[size_t(n.firstChild + c)].firstChild = -1;
-            }
-            n.firstChild = -1;
-            leaves_at[n.brick.level + 1] -= 8;
-            leaves_at[n.brick.level] += 1;
+            n.removed = true;
+            --stored_at[n.brick.level];
             ++out.budgetDropped;
-            out.budgetError = std::max(out.budgetError, double(error));
-            if (n.parent >= 0 && mergeable(n.parent)) {
-                heap.emplace(nodes[size_t(n.parent)].measured, n.parent);
+            out.budgetError = std::max(out.budgetError, double(n.gain));
+            if (removable(n.parent)) {
+                heap.emplace(cost(n.parent), n.parent);
             }
         }
         if (bytes() > settings.budgetBytes) {
@@ -638,45 +751,54 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
         }
     }
 
-    // The leaves, coarse first, then z, y, x.
-    std::vector<int> leaf_nodes;
+    // The stored bricks, coarse first, then z, y, x.
+    std::vector<int> stored;
     for (size_t i = 0; i < nodes.size(); ++i) {
-        if (nodes[i].parent != -2 && nodes[i].firstChild < 0) {
-            leaf_nodes.push_back(int(i));
+        if (!nodes[i].removed) {
+            stored.push_back(int(i));
         }
     }
-    std::sort(leaf_nodes.begin(), leaf_nodes.end(), [&](int a, int b) {
+    std::sort(stored.begin(), stored.end(), [&](int a, int b) {
         const Brick& x = nodes[size_t(a)].brick;
         const Brick& y = nodes[size_t(b)].brick;
         return std::tuple(x.level, x.coord.z, x.coord.y, x.coord.x) <
                std::tuple(y.level, y.coord.z, y.coord.y, y.coord.x);
     });
 
-    // Predicted interpolation error: per leaf the RMS disagreement where it was measured,
-    // otherwise its prediction, weighted by the leaf's volume times its share of valid probes
-    // (error is only ever measured in open space).
+    // Predicted interpolation error, over the part of each stored brick that shows: where it
+    // was tested, each octant without a finer brick at its measured disagreement; otherwise the
+    // whole brick at its prediction. Weights are volumes times the brick's share of valid
+    // probes (error is only ever measured in open space).
     double sum_w = 0.0, sum_e2 = 0.0;
-    for (int i : leaf_nodes) {
+    for (int i : stored) {
         const Node& n = nodes[size_t(i)];
-        const double e = n.measured >= 0.0f ? n.measured : n.predicted;
         const auto own = regionPoints(n.brick, max_level, 1);
         const double valid_share =
             double(std::count_if(own.begin(), own.end(),
                                  [&](const glm::uvec3& u) { return lattice.valid(u); })) /
             double(kBrickProbeCount);
         const double w = std::ldexp(valid_share, -3 * int(n.brick.level));
-        sum_w += w;
-        sum_e2 += w * e * e;
+        if (n.measured < 0.0f) {
+            sum_w += w;
+            sum_e2 += w * double(n.predicted) * n.predicted;
+            continue;
+        }
+        for (int o = 0; o < 8; ++o) {
+            if (n.children[o] < 0 || nodes[size_t(n.children[o])].removed) {
+                sum_w += w / 8.0;
+                sum_e2 += w / 8.0 * double(n.octant[o]) * n.octant[o];
+            }
+        }
     }
     out.predictedError = sum_w > 0.0 ? std::sqrt(sum_e2 / sum_w) : 0.0;
 
-    // Re-express every leaf on the lattice of the deepest level actually used.
+    // Re-express every stored brick on the lattice of the deepest level actually used.
     const uint32_t used_level = deepest();
     out.desc = desc;
     out.desc.layout = VolumeLayout::Bricked;
     out.desc.bricks.maxLevel = used_level;
     std::vector<uint64_t> used_keys;
-    for (int i : leaf_nodes) {
+    for (int i : stored) {
         const Brick& b = nodes[size_t(i)].brick;
         out.desc.bricks.bricks.push_back(b);
         ++out.bricksPerLevel[b.level];
@@ -702,6 +824,7 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
         out.probes.push_back(lattice.allSh()[index]);
         out.validity.push_back(original_valid[index]);
         out.invalidProbes += original_valid[index] == kProbeInvalid;
+        out.nudgedProbes += lattice.nudged(k);
     }
     Result<std::vector<uint32_t>> indirection =
         brick::buildIndirection(top, out.desc.bricks, "volume '" + desc.name + "'");

@@ -27,8 +27,14 @@ struct BrickedSettings {
     float refineError = 0.05f; // fraction of the volume's RMS irradiance
     uint64_t budgetBytes = ~uint64_t(0);
     bool dilate = true;
-    // Traces the direct-light pre-pass (shadow rays to punctual lights); null = no pre-pass.
+    // Traces the direct-light pre-pass (shadow rays to punctual lights) and the search for
+    // nudged positions; null = neither.
     const RayTracer* tracer = nullptr;
+    // Probes on a surface (an invalid probe within 1/8 of the finest spacing of open space)
+    // are baked again just outside it instead of being dilated (see bricked.cpp, Lattice).
+    bool nudge = true;
+    float backfaceThreshold = 0.25f; // BakeConfig::backfaceThreshold
+
 };
 
 struct BrickedOutcome {
@@ -41,6 +47,7 @@ struct BrickedOutcome {
     double budgetError = 0.0;
     double predictedError = 0.0; // RMS interpolation error, fraction of RMS irradiance
     uint64_t invalidProbes = 0;  // lattice points inside geometry among those written
+    uint64_t nudgedProbes = 0;   // lattice points baked just outside the surface they lie on
     std::vector<std::string> warnings;
 };
 

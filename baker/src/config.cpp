@@ -478,7 +478,7 @@ BakeConfig parseTop(const Reader& r, const Json& j, const std::filesystem::path&
     }
     if (j.contains("validity")) {
         const Json& v = j["validity"];
-        r.checkKeys(v, "validity", {"backface_threshold", "dilate"});
+        r.checkKeys(v, "validity", {"backface_threshold", "dilate", "nudge"});
         if (v.contains("backface_threshold")) {
             const double t = r.number(v["backface_threshold"], "validity.backface_threshold");
             if (t < 0.0 || t > 1.0) {
@@ -491,6 +491,12 @@ BakeConfig parseTop(const Reader& r, const Json& j, const std::filesystem::path&
                 r.fail("validity.dilate", "must be true or false");
             }
             c.dilate = v["dilate"].get<bool>();
+        }
+        if (v.contains("nudge")) {
+            if (!v["nudge"].is_boolean()) {
+                r.fail("validity.nudge", "must be true or false");
+            }
+            c.nudge = v["nudge"].get<bool>();
         }
     }
     if (j.contains("target_error")) {
@@ -643,7 +649,8 @@ std::string describeConfig(const BakeConfig& c) {
                             {"rotation_deg", c.environment.rotationDeg}};
         break;
     }
-    j["validity"] = {{"backface_threshold", c.backfaceThreshold}, {"dilate", c.dilate}};
+    j["validity"] = {
+        {"backface_threshold", c.backfaceThreshold}, {"dilate", c.dilate}, {"nudge", c.nudge}};
     j["max_memory_mb"] = c.maxMemoryBytes >> 20;
     if (c.targetError) {
         j["target_error"] = *c.targetError;

@@ -367,6 +367,7 @@ int runBake(const BakeOptionsCli& o) {
         report["bricks_per_level"] = {s.bricksPerLevel[0], s.bricksPerLevel[1], s.bricksPerLevel[2],
                                       s.bricksPerLevel[3]};
         report["refine_candidates"] = s.refineCandidates;
+        report["nudged_probes"] = s.nudgedProbes;
         report["budget_dropped"] = s.budgetDropped;
         report["budget_error"] = s.budgetError;
         report["predicted_interpolation_error"] = s.predictedInterpolationError;
@@ -395,15 +396,17 @@ int runBake(const BakeOptionsCli& o) {
         }
         if (any_bricked) {
             std::printf("  bricks by level %llu / %llu / %llu / %llu, %llu tested for "
-                        "refinement, GPU bytes %llu, predicted interpolation error %.3g\n",
+                        "refinement, %llu probes nudged off surfaces, GPU bytes %llu, predicted "
+                        "interpolation error %.3g\n",
                         static_cast<unsigned long long>(s.bricksPerLevel[0]),
                         static_cast<unsigned long long>(s.bricksPerLevel[1]),
                         static_cast<unsigned long long>(s.bricksPerLevel[2]),
                         static_cast<unsigned long long>(s.bricksPerLevel[3]),
                         static_cast<unsigned long long>(s.refineCandidates),
+                        static_cast<unsigned long long>(s.nudgedProbes),
                         static_cast<unsigned long long>(gpu_bytes), s.predictedInterpolationError);
             if (s.budgetDropped > 0) {
-                std::printf("  max_memory_mb bound: %llu refinements dropped, the costliest "
+                std::printf("  max_memory_mb bound: %llu finer bricks dropped, the costliest "
                             "with disagreement %.3g\n",
                             static_cast<unsigned long long>(s.budgetDropped), s.budgetError);
             }

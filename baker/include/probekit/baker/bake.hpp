@@ -176,6 +176,9 @@ struct BakeConfig {
     EnvironmentConfig environment;
     float backfaceThreshold = 0.25f; // probe invalid when more of its rays hit back faces
     bool dilate = true;              // fill invalid probes from valid neighbours
+    // Bricked volumes: an invalid probe lying on a surface (open space within 1/8 of the
+    // finest probe spacing) is baked again just outside it instead of being dilated.
+    bool nudge = true;
     // Dense volumes: the bake's working memory may not exceed this (error). Bricked volumes:
     // budget for their GPU bytes (texels + indirection); when it binds, the refinements whose
     // removal costs the least error are dropped (BakeStats::budgetDropped / budgetError).
@@ -240,9 +243,10 @@ struct BakeStats {
     uint64_t vplLightPaths = 0; // method vpl: light paths traced to place them
     double vplMeanCut = 0.0;    // method vpl: clusters gathered per probe, mean
     // Bricked volumes (summed over them):
-    uint64_t bricksPerLevel[4] = {0, 0, 0, 0}; // leaf bricks written, by level
+    uint64_t bricksPerLevel[4] = {0, 0, 0, 0}; // bricks written, by level
+    uint64_t nudgedProbes = 0;                 // probes on a surface baked just outside it
     uint64_t refineCandidates = 0;             // bricks whose finer probes were baked to test them
-    uint64_t budgetDropped = 0;                // refinements removed by max_memory_mb
+    uint64_t budgetDropped = 0;                // finer bricks removed by max_memory_mb
     // Largest disagreement (fraction of RMS irradiance) of a refinement the budget removed:
     // the error the budget cost where it cost most. 0 when the budget did not bind.
     double budgetError = 0.0;
