@@ -108,9 +108,8 @@ private:
     // (1/32 and 1/8 of the finest spacing) whose own test rays see few enough back faces.
     // Probes deeper inside than that stay invalid (and are dilated as before).
     // Returns 1 for each probe that was moved.
-    std::vector<uint8_t> nudge(std::span<const glm::vec3> positions,
-                               std::span<const uint64_t> keys, std::span<sh::ShRgb> sh,
-                               std::span<uint8_t> valid) {
+    std::vector<uint8_t> nudge(std::span<const glm::vec3> positions, std::span<const uint64_t> keys,
+                               std::span<sh::ShRgb> sh, std::span<uint8_t> valid) {
         std::vector<uint8_t> nudged(keys.size(), 0);
         if (m_tracer == nullptr) {
             return nudged;
@@ -159,9 +158,10 @@ private:
                 continue;
             }
             for (const float r : radii) {
-                const auto it = std::find_if(directions.begin(), directions.end(), [&](glm::vec3 d) {
-                    return backfaces(p + r * d) <= m_backfaceThreshold;
-                });
+                const auto it =
+                    std::find_if(directions.begin(), directions.end(), [&](glm::vec3 d) {
+                        return backfaces(p + r * d) <= m_backfaceThreshold;
+                    });
                 if (it != directions.end()) {
                     moved.push_back(p + r * *it);
                     moved_keys.push_back(keys[i]);

@@ -34,7 +34,6 @@ struct BrickedSettings {
     // are baked again just outside it instead of being dilated (see bricked.cpp, Lattice).
     bool nudge = true;
     float backfaceThreshold = 0.25f; // BakeConfig::backfaceThreshold
-
 };
 
 struct BrickedOutcome {

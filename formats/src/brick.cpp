@@ -160,9 +160,9 @@ void stitchBorders(glm::uvec3 top_bricks, const BrickLayout& layout,
                 for (uint32_t x = 0; x < cells.x; ++x) {
                     const uint32_t shown =
                         indirection[x + size_t(cells.x) * (y + size_t(cells.y) * z)];
-                    uint32_t& entry = first[(x >> shift) +
-                                            size_t(regions.x) *
-                                                ((y >> shift) + size_t(regions.y) * (z >> shift))];
+                    uint32_t& entry =
+                        first[(x >> shift) + size_t(regions.x) *
+                                                 ((y >> shift) + size_t(regions.y) * (z >> shift))];
                     if (entry == kNone || precedes(shown, entry)) {
                         entry = shown;
                     }

@@ -1,5 +1,6 @@
-// The bricked layout (brick.hpp): the indirection and its layout checks (nested bricks too), the sampling rule
-// (locate + interpolate) and border stitching, which is what makes the field seamless.
+// The bricked layout (brick.hpp): the indirection and its layout checks (nested bricks too), the
+// sampling rule (locate + interpolate) and border stitching, which is what makes the field
+// seamless.
 #include "probekit/formats/brick.hpp"
 
 #include <gtest/gtest.h>
