@@ -59,7 +59,28 @@ for res in "16 32 16" "32 64 32" "64 128 64"; do
     config 32 "\"resolution\": [${res// /, }]"
     run overcast-tall dense "${res// /x}"
 done
-for refine in 0.005 0.0025; do
+for refine in 0.01 0.005 0.0025; do
     config 32 "\"layout\": \"bricked\", \"resolution\": [2, 4, 2], \"levels\": 3, \"refine_error\": $refine"
     run overcast-tall bricked "2x4x2 levels 3 refine $refine"
 done
+# Equal error: each bricked row against the dense rows of its case, bytes and seconds
+# interpolated log-log between the two dense rows whose errors bracket the bricked one.
+/usr/bin/python3 - "$out" <<'PY'
+import csv, math, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+print("case,bricked setting,error,bytes / dense at equal error,seconds / dense at equal error")
+for b in (r for r in rows if r["layout"] == "bricked"):
+    dense = sorted((r for r in rows if r["case"] == b["case"] and r["layout"] == "dense"),
+                   key=lambda r: -float(r["rel_rmse"]))
+    e = float(b["rel_rmse"])
+    for hi, lo in zip(dense, dense[1:]):
+        e_hi, e_lo = float(hi["rel_rmse"]), float(lo["rel_rmse"])
+        if e_lo <= e <= e_hi:
+            t = math.log(e / e_hi) / math.log(e_lo / e_hi)
+            at = lambda k: math.exp((1 - t) * math.log(float(hi[k])) + t * math.log(float(lo[k])))
+            print(f"{b['case']},{b['setting']},{e:.4f},{float(b['gpu_bytes']) / at('gpu_bytes'):.3f},"
+                  f"{float(b['seconds']) / at('seconds'):.3f}")
+            break
+    else:
+        print(f"{b['case']},{b['setting']},{e:.4f},outside the dense rows' errors,")
+PY

@@ -1,5 +1,5 @@
 // Bricked test volumes (formats/.../brick.hpp) for the CPU sampler tests (tests/unit) and the GPU
-// tests: a mixed-level layout and volumes filled from a field at every brick probe's position.
+// tests: a mixed-level layout, a nested one and volumes filled from a field at every brick probe's position.
 // Header-only and formats-only, so both test executables can use it.
 #pragma once
 
@@ -34,6 +34,25 @@ inline brick::BrickLayout mixedLayout(glm::uvec3 top) {
     }
     for (uint32_t child = 0; child < 8; ++child) {
         layout.bricks.push_back({glm::uvec3(child & 1, (child >> 1) & 1, child >> 2), 2});
+    }
+    return layout;
+}
+
+// Nested levels 0..2 over `top` level-0 regions (brick.hpp: the deepest brick over a point
+// shows): every level-0 brick; in region 0 the level-1 bricks of octants 0, 3 and 5 only (the
+// level-0 brick shows in the other five); under level-1 octant 0, level-2 bricks in 3 of its
+// 8 octants; and in region 1 (if any) a lone level-2 brick with no level-1 brick above it.
+inline brick::BrickLayout nestedLayout(glm::uvec3 top) {
+    brick::BrickLayout layout = brick::uniformLayout(top, 0);
+    layout.maxLevel = 2;
+    for (uint32_t child : {0u, 3u, 5u}) {
+        layout.bricks.push_back({glm::uvec3(child & 1, (child >> 1) & 1, child >> 2), 1});
+    }
+    for (uint32_t child : {1u, 2u, 7u}) {
+        layout.bricks.push_back({glm::uvec3(child & 1, (child >> 1) & 1, child >> 2), 2});
+    }
+    if (top.x > 1) {
+        layout.bricks.push_back({glm::uvec3(5, 2, 1), 2});
     }
     return layout;
 }

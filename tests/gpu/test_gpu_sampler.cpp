@@ -690,6 +690,10 @@ std::vector<BrickedCase> brickedCases() {
     mixed.storage = Storage::Float16;
     out.push_back({"bricked_mixed_l2_half", {makeBricked(mixed, kFieldB)}});
 
+    BrickedSpec nested;
+    nested.layout = bricktest::nestedLayout(nested.top);
+    out.push_back({"bricked_nested_l2_float", {makeBricked(nested, kFieldA)}});
+
     BrickedSpec rotated_l1 = mixed;
     rotated_l1.order = sh::Order::L1;
     rotated_l1.storage = Storage::Float32;

@@ -251,7 +251,7 @@ struct BakeStats {
     // the error the budget cost where it cost most. 0 when the budget did not bind.
     double budgetError = 0.0;
     // Predicted interpolation error of the bricked volumes (fraction of RMS irradiance, RMS
-    // over the volume) from the measured disagreements of their leaves.
+    // over the volume) from the measured disagreements where each brick shows.
     double predictedInterpolationError = 0.0;
 };
 
