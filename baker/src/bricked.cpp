@@ -104,9 +104,11 @@ private:
     // Lattice points lie on the box faces, and a box is often placed against walls and floors:
     // such a probe sits on a surface, where half its rays start inside the solid and it bakes
     // invalid. Rather than dilate it from probes a whole spacing away, it is baked again just
-    // outside: at the first of 26 directions (axes, then edges, then corners) and distances
-    // (1/32 and 1/8 of the finest spacing) whose own test rays see few enough back faces.
-    // Probes deeper inside than that stay invalid (and are dilated as before).
+    // inside the box: at the first of the 26 directions (axes, then edges, then corners) that
+    // point into the box from every face the probe is on, and distances 1/32 and 1/8 of the
+    // finest spacing, whose own test rays see few enough back faces. Probes inside the box
+    // stay as they are (one inside a thin wall would take one side's light to the other), and
+    // so do probes deeper inside a solid: both are dilated as before.
     // Returns 1 for each probe that was moved.
     std::vector<uint8_t> nudge(std::span<const glm::vec3> positions, std::span<const uint64_t> keys,
                                std::span<sh::ShRgb> sh, std::span<uint8_t> valid) {
@@ -114,6 +116,7 @@ private:
         if (m_tracer == nullptr) {
             return nudged;
         }
+        // The box's (local) axis directions, and the same in world space.
         static const std::vector<glm::vec3> directions = [] {
             std::vector<glm::vec3> out;
             for (int axes = 1; axes <= 3; ++axes) {
@@ -126,15 +129,19 @@ private:
             }
             return out;
         }();
+        std::vector<glm::vec3> world_directions;
+        for (const glm::vec3& d : directions) {
+            world_directions.push_back(m_desc.grid.frame().rotation * d);
+        }
         const float radii[] = {m_spacing / 32.0f, m_spacing / 8.0f};
         // Back-face share of the rays from q in the 26 directions.
         auto backfaces = [&](glm::vec3 q) {
             int back = 0;
-            for (const glm::vec3& d : directions) {
+            for (const glm::vec3& d : world_directions) {
                 const std::optional<Hit> hit = m_tracer->intersect(q, d);
                 back += hit && hit->backFace;
             }
-            return float(back) / float(directions.size());
+            return float(back) / float(world_directions.size());
         };
         std::vector<glm::vec3> moved;
         std::vector<uint64_t> moved_keys;
@@ -143,27 +150,28 @@ private:
             if (valid[i] == kProbeValid) {
                 continue;
             }
-            const glm::vec3 p = positions[i];
-            // Deep inside (every direction runs further than the largest radius before it
-            // leaves the solid): no candidate can be outside.
-            bool near_surface = false;
-            for (const glm::vec3& d : directions) {
-                const std::optional<Hit> hit = m_tracer->intersect(p, d, radii[1]);
-                near_surface |= !hit.has_value() || !hit->backFace || hit->t <= radii[1];
-                if (near_surface) {
-                    break;
-                }
+            const glm::uvec3 u = coord(keys[i]);
+            glm::ivec3 inward(0); // +1 / -1 on the box's min / max face along an axis
+            for (int a = 0; a < 3; ++a) {
+                inward[a] = u[a] == 0 ? 1 : u[a] + 1 == m_points[a] ? -1 : 0;
             }
-            if (!near_surface) {
+            if (inward == glm::ivec3(0)) {
                 continue;
             }
+            const glm::vec3 p = positions[i];
             for (const float r : radii) {
-                const auto it =
-                    std::find_if(directions.begin(), directions.end(), [&](glm::vec3 d) {
-                        return backfaces(p + r * d) <= m_backfaceThreshold;
-                    });
-                if (it != directions.end()) {
-                    moved.push_back(p + r * *it);
+                size_t found = directions.size();
+                for (size_t k = 0; k < directions.size() && found == directions.size(); ++k) {
+                    bool into_box = true;
+                    for (int a = 0; a < 3; ++a) {
+                        into_box &= inward[a] == 0 || directions[k][a] * float(inward[a]) > 0.0f;
+                    }
+                    if (into_box && backfaces(p + r * world_directions[k]) <= m_backfaceThreshold) {
+                        found = k;
+                    }
+                }
+                if (found < directions.size()) {
+                    moved.push_back(p + r * world_directions[found]);
                     moved_keys.push_back(keys[i]);
                     slots.push_back(i);
                     break;
