@@ -643,6 +643,66 @@ TEST(BrickedBake, BricksInsideTheTallBlockAreNeverRefined) {
     EXPECT_GE(all_invalid_leaves, 1u);
 }
 
+// The overcast courtyard's walls and floor lie on the faces of a box over its interior, so a
+// quarter of the probes sit on surfaces. Nudged just inside the box they bake real values;
+// without nudging they are invalid and dilated from probes one level-0 spacing (2.7 m) away.
+// Measured at points 10 cm from the walls and the floor against a path reference (2 x 2048
+// directions, its noise subtracted), nudging must cut the error at least in half.
+TEST(BrickedBake, ProbesOnWallsAndFloorAreNudgedInsteadOfDilated) {
+    const auto start = std::chrono::steady_clock::now();
+    Scene scene = test::generatedScene("courtyard-overcast");
+    scene.environment.type = baker::Environment::Type::Constant; // the overcast sky
+    scene.environment.constant = glm::vec3(0.3f, 0.4f, 0.6f);
+    const VolumeConfig v = brickedVolume(glm::vec3(-8.0f, 0.0f, -8.0f), glm::vec3(8.0f, 6.0f, 8.0f),
+                                         glm::uvec3(2, 1, 2), 0, 1.0f);
+    BakeConfig c;
+    c.path.samples = 256;
+    c.volumes = {v};
+    Result<BakeResult> on = bake(scene, c, BakeOptions{});
+    c.nudge = false;
+    Result<BakeResult> off = bake(scene, c, BakeOptions{});
+    ASSERT_TRUE(on.ok() && off.ok());
+    // Lattice 7 x 4 x 7: 196 probes, of which 5 x 3 x 5 = 75 lie off the walls and the floor.
+    constexpr uint64_t kOnSurfaces = 196 - 75;
+    const uint64_t nudged = on.value().stats.nudgedProbes;
+    const uint64_t invalid_off = off.value().stats.invalidProbes;
+    const uint64_t invalid_on = on.value().stats.invalidProbes;
+    EXPECT_EQ(off.value().stats.nudgedProbes, 0u);
+    EXPECT_GE(nudged, kOnSurfaces / 2) << "most probes on walls and floor bake invalid";
+    EXPECT_LE(nudged, kOnSurfaces);
+    EXPECT_EQ(invalid_on + nudged, invalid_off) << "nudging changes nothing else";
+
+    // Points 10 cm from a wall or the floor, 0.5..5.5 m up and along it.
+    std::vector<glm::vec3> points;
+    for (int i = 0; i < 12; ++i) {
+        const float along = -7.5f + 15.0f * float(i) / 11.0f;
+        const float up = 0.5f + 5.0f * float((i * 5) % 12) / 11.0f;
+        points.push_back({-7.9f, up, along});
+        points.push_back({7.9f, up, -along});
+        points.push_back({along, up, 7.9f});
+        points.push_back({along, 0.1f, -along * 0.8f});
+    }
+    Result<PointBake> ref_a = bakePoints(scene, c, points, 2048, 1);
+    Result<PointBake> ref_b = bakePoints(scene, c, points, 2048, 2);
+    ASSERT_TRUE(ref_a.ok() && ref_b.ok());
+    auto error_of = [&](const Volume& vol) {
+        return estimateError(
+            [&](glm::vec3 p, glm::vec3 n) {
+                return sh::irradiance(runtime::sampleVolumeSh(vol, p), vol.desc.shOrder, n);
+            },
+            points, ref_a.value(), ref_b.value());
+    };
+    const ErrorEstimate e_on = error_of(on.value().file.volumes[0]);
+    const ErrorEstimate e_off = error_of(off.value().file.volumes[0]);
+    std::printf("[nudge] %llu of %llu probes on walls and floor nudged (invalid without: %llu); "
+                "error 10 cm from them %.4f nudged, %.4f dilated (%zu points, reference noise "
+                "%.4f); %.2f s\n",
+                (unsigned long long)nudged, (unsigned long long)kOnSurfaces,
+                (unsigned long long)invalid_off, e_on.relRmse, e_off.relRmse, e_on.points,
+                e_on.referenceNoise, secondsSince(start));
+    EXPECT_LT(e_on.relRmse, 0.5 * e_off.relRmse);
+}
+
 // Under a constant sky with no geometry in reach, the field is uniform: nothing is even tested
 // for refinement, and E(n) = pi L.
 TEST(BrickedBake, UniformSkyDoesNotRefine) {

@@ -1,6 +1,6 @@
 // Bricked test volumes (formats/.../brick.hpp) for the CPU sampler tests (tests/unit) and the GPU
-// tests: a mixed-level layout, a nested one and volumes filled from a field at every brick probe's position.
-// Header-only and formats-only, so both test executables can use it.
+// tests: a mixed-level layout, a nested one and volumes filled from a field at every brick probe's
+// position. Header-only and formats-only, so both test executables can use it.
 #pragma once
 
 #include <functional>
