@@ -801,11 +801,11 @@ TEST(BrickedBake, RefinementFollowsTheLightAndGrowsAsRefineErrorFalls) {
         EXPECT_EQ(levelCounts(*v)[0], 8u);
         uint64_t finer = 0, under_light = 0;
         float farthest = 0.0f;
-        for (const Brick& b : v->desc.bricks.bricks) {
-            if (b.level > 0) {
+        for (const Brick& brick : v->desc.bricks.bricks) {
+            if (brick.level > 0) {
                 ++finer;
-                under_light += (b.coord >> glm::uvec3(b.level)) == light_brick.coord;
-                farthest = std::max(farthest, distanceToBox(brickRegion(v->desc, b), light));
+                under_light += (brick.coord >> glm::uvec3(brick.level)) == light_brick.coord;
+                farthest = std::max(farthest, distanceToBox(brickRegion(v->desc, brick), light));
             }
         }
         std::printf("[thin-wall light] %llu finer bricks, %llu under the light's level-0 brick, "
