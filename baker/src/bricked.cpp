@@ -25,9 +25,10 @@ struct Node {
     int parent = -1;
     int children[8] = {-1, -1, -1, -1, -1, -1, -1, -1}; // kept finer bricks per octant
     float predicted = 0.0f; // predicted interpolation error before testing
-    // RMS disagreement at the finer probes, noise taken out; < 0 = not tested.
-    float measured = -1.0f;
-    float octant[8] = {}; // the same per octant (the region of the finer brick there)
+    bool tested = false;    // its finer probes were baked and `octant` measured
+    // RMS disagreement at the finer probes of each octant (the region of the finer brick
+    // there), noise taken out.
+    float octant[8] = {};
     float gain = 0.0f;    // the parent's disagreement in this brick's octant: what it removes
     bool removed = false; // dropped by the budget
 };
@@ -91,7 +92,6 @@ public:
         }
     }
 
-    bool has(glm::uvec3 u) const { return m_index.contains(key(u)); }
     uint32_t index(glm::uvec3 u) const { return m_index.at(key(u)); }
     const sh::ShRgb& sh(glm::uvec3 u) const { return m_sh[index(u)]; }
     bool valid(glm::uvec3 u) const { return m_valid[index(u)] == kProbeValid; }
@@ -255,18 +255,16 @@ struct ErrorSum {
     }
 };
 
+// RMS disagreement per octant of a brick (the region of the finer brick there).
 struct Disagreement {
-    float rms = 0.0f;
     float octant[8] = {};
 };
 
-// Accumulates one point of a brick's finer lattice (q in 0..6 per axis) into the total and into
-// every octant (finer brick region) it lies in: border points count for several.
+// Accumulates one point of a brick's finer lattice (q in 0..6 per axis) into every octant
+// (finer brick region) it lies in: border points count for several.
 struct OctantSums {
-    ErrorSum total;
     ErrorSum octants[8];
     void add(glm::uvec3 q, double squared_error, double squared_noise) {
-        total.add(squared_error, squared_noise);
         constexpr uint32_t half = kBrickCells; // 0..3 in the low octant, 3..6 in the high one
         for (uint32_t o = 0; o < 8; ++o) {
             const glm::uvec3 hi(o & 1, (o >> 1) & 1, o >> 2);
@@ -281,7 +279,6 @@ struct OctantSums {
     }
     Disagreement result() const {
         Disagreement d;
-        d.rms = total.rms();
         for (int o = 0; o < 8; ++o) {
             d.octant[o] = octants[o].rms();
         }
@@ -674,7 +671,7 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
             // The full bake's disagreement decides; the exact direct-light one is a floor
             // under it (noise subtraction can only hide an edge the pre-pass sees exactly).
             Node& n = nodes[size_t(i)];
-            n.measured = std::max(d.rms, direct_error[c].rms);
+            n.tested = true;
             for (int o = 0; o < 8; ++o) {
                 n.octant[o] = std::max(d.octant[o], direct_error[c].octant[o]);
             }
@@ -786,7 +783,7 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
                                  [&](const glm::uvec3& u) { return lattice.valid(u); })) /
             double(kBrickProbeCount);
         const double w = std::ldexp(valid_share, -3 * int(n.brick.level));
-        if (n.measured < 0.0f) {
+        if (!n.tested) {
             sum_w += w;
             sum_e2 += w * double(n.predicted) * n.predicted;
             continue;

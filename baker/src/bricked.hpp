@@ -30,8 +30,8 @@ struct BrickedSettings {
     // Traces the direct-light pre-pass (shadow rays to punctual lights) and the search for
     // nudged positions; null = neither.
     const RayTracer* tracer = nullptr;
-    // Probes on a surface (an invalid probe within 1/8 of the finest spacing of open space)
-    // are baked again just outside it instead of being dilated (see bricked.cpp, Lattice).
+    // Invalid probes on the box faces (on a wall or floor the box is placed against) are baked
+    // again just inside the box instead of being dilated (see bricked.cpp, Lattice::nudge).
     bool nudge = true;
     float backfaceThreshold = 0.25f; // BakeConfig::backfaceThreshold
 };
@@ -46,7 +46,7 @@ struct BrickedOutcome {
     double budgetError = 0.0;
     double predictedError = 0.0; // RMS interpolation error, fraction of RMS irradiance
     uint64_t invalidProbes = 0;  // lattice points inside geometry among those written
-    uint64_t nudgedProbes = 0;   // lattice points baked just outside the surface they lie on
+    uint64_t nudgedProbes = 0;   // box-face lattice points baked just inside the box
     std::vector<std::string> warnings;
 };
 
@@ -55,26 +55,30 @@ struct BrickedOutcome {
 // measured by baking up to 64 level-0 probes a second time with independent samples, and the
 // noise's expected share is subtracted from every squared disagreement.
 // Refinement rule (one level at a time, starting from every level-0 brick; t_l =
-// refineError x sqrt(8)^l: a brick's share of the volume's squared error is its volume, 1/8
-// per level, times its squared error, so a level-l brick must be sqrt(8)^l times worse than a
-// level-0 one to be worth its 8 children):
+// refineError x sqrt(8)^l: every brick costs the same bytes and removes about its volume, 1/8
+// per level, times the squared disagreement of its octant, so a finer brick under a level-l
+// brick is worth keeping where that disagreement exceeds t_l):
 //  * prediction: the larger of (a) a cheap pre-pass, the direct light of the punctual lights
 //    (one shadow ray per light and point, exact, no noise) at the next level's lattice points
-//    against the brick's interpolation of its own, which finds shadow edges also in open air,
-//    and (b) the full bake's disagreement measured one level up on the brick's region, divided
-//    by 4 (trilinear error falls with the square of the spacing) or by 2 where geometry lies
-//    within the brick's reach (a triangle's bounding box overlaps the region grown by one probe
-//    spacing: contact shading falls about linearly); on level 0, (b) is how far the brick's own
-//    probes stray from the interpolation of its 8 corners, divided by 9 (3 near geometry);
+//    against the brick's interpolation of its own, largest over the octants, which finds
+//    shadow edges also in open air, and (b) the full bake's disagreement in the brick's octant
+//    one level up, divided by 4 (trilinear error falls with the square of the spacing) or by 2
+//    where geometry lies within the brick's reach (a triangle's bounding box overlaps the
+//    region grown by one probe spacing: contact shading falls about linearly); on level 0,
+//    (b) is how far the brick's own probes stray from the interpolation of its 8 corners,
+//    divided by 9 (3 near geometry);
 //  * a brick whose prediction exceeds t_l, and that has a probe outside geometry (bricks inside
-//    solids are never spent on), bakes its finer probes for real; it is split when the larger
-//    of the measured disagreement and (a) exceeds t_l. Otherwise its finer probes stay unused
-//    (their bake time is part of the bake).
-// The budget then merges the splits whose disagreement is smallest until the GPU bytes fit.
+//    solids are never spent on), bakes its finer probes for real; the finer brick of each
+//    octant where the larger of the measured disagreement and (a) exceeds t_l is kept (bricks
+//    nest: brick.hpp). The other octants' finer probes stay unused (their bake time is part of
+//    the bake).
+// The budget then drops the finer bricks whose removal costs least (volume x squared
+// disagreement of their octant), a brick only after its own finer bricks, until the GPU bytes
+// fit.
 Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, sh::Order order,
                                    const BrickedSettings& settings, const ProbeBatchFn& bake_batch);
 
-// GPU bytes of a bricked layout: texels of `bricks` leaves plus the u32 indirection.
+// GPU bytes of a bricked layout: texels of `bricks` bricks plus the u32 indirection.
 uint64_t brickedGpuBytes(glm::uvec3 top_bricks, uint32_t max_level, uint64_t bricks,
                          sh::Order order, Storage storage);
 

@@ -12,6 +12,8 @@
 #include <numeric>
 #include <vector>
 
+#include "../gpu/bricked_test_volume.hpp"
+
 namespace probekit::brick {
 namespace {
 
@@ -70,19 +72,12 @@ BrickLayout mixedLayout() {
     return BrickLayout{kMixedMaxLevel, bricks};
 }
 
-// The same top bricks, nested: all four level-0 bricks, plus finer bricks over some octants
-// only (the level-0 brick still shows in the rest of its region):
-//   top (0,0,0): level-1 (0,0,0), (1,0,0) and (1,1,1); under (1,0,0), level-2 (3,0,0) and
-//     (2,1,1), which meet level-1 (1,1,1) along an edge and level-0 top (1,0,0) on a face;
-//   top (1,0,1): level-1 (2,0,2) and (3,1,3), touching only along an edge.
+// The same top bricks, nested (bricktest::nestedLayout, also used by the sampler and GPU
+// tests): all four level-0 bricks; in top (0,0,0) the level-1 bricks of octants 0, 3 and 5
+// only; under level-1 (0,0,0) the level-2 bricks (1,0,0), (0,1,0) and (1,1,1); and in top
+// (1,0,0) a lone level-2 brick (5,2,1) with no level-1 brick above it.
 BrickLayout nestedLayout() {
-    std::vector<Brick> bricks = {
-        {glm::uvec3(3, 0, 0), 2}, {glm::uvec3(1, 0, 0), 0}, {glm::uvec3(1, 0, 0), 1},
-        {glm::uvec3(0, 0, 0), 0}, {glm::uvec3(2, 0, 2), 1}, {glm::uvec3(0, 0, 1), 0},
-        {glm::uvec3(1, 1, 1), 1}, {glm::uvec3(2, 1, 1), 2}, {glm::uvec3(1, 0, 1), 0},
-        {glm::uvec3(0, 0, 0), 1}, {glm::uvec3(3, 1, 3), 1},
-    };
-    return BrickLayout{kMixedMaxLevel, bricks};
+    return bricktest::nestedLayout(kMixedTop);
 }
 
 uint32_t findBrick(const BrickLayout& layout, glm::uvec3 coord, uint8_t level) {
@@ -216,11 +211,13 @@ TEST(BrickIndirection, NestedLayoutEntriesNameTheDeepestCoveringBrick) {
     const glm::uvec3 cells = finestCells(kMixedTop, kMixedMaxLevel);
     ASSERT_EQ(indirection.size(), 256u);
     EXPECT_EQ(indirection[cellIndex(cells, {0, 0, 0})], findBrick(layout, {0, 0, 0}, 1));
+    EXPECT_EQ(indirection[cellIndex(cells, {1, 0, 0})], findBrick(layout, {1, 0, 0}, 2));
     EXPECT_EQ(indirection[cellIndex(cells, {0, 2, 0})], findBrick(layout, {0, 0, 0}, 0))
         << "an octant without a finer brick shows the level-0 brick";
-    EXPECT_EQ(indirection[cellIndex(cells, {3, 0, 0})], findBrick(layout, {3, 0, 0}, 2));
-    EXPECT_EQ(indirection[cellIndex(cells, {2, 0, 0})], findBrick(layout, {1, 0, 0}, 1));
-    EXPECT_EQ(indirection[cellIndex(cells, {7, 3, 7})], findBrick(layout, {3, 1, 3}, 1));
+    EXPECT_EQ(indirection[cellIndex(cells, {2, 2, 0})], findBrick(layout, {1, 1, 0}, 1));
+    EXPECT_EQ(indirection[cellIndex(cells, {5, 2, 1})], findBrick(layout, {5, 2, 1}, 2))
+        << "a level-2 brick shows without a level-1 brick above it";
+    EXPECT_EQ(indirection[cellIndex(cells, {4, 0, 0})], findBrick(layout, {1, 0, 0}, 0));
     std::vector<uint32_t> shown_cells(layout.bricks.size(), 0);
     for (uint32_t z = 0; z < cells.z; ++z) {
         for (uint32_t y = 0; y < cells.y; ++y) {
@@ -240,10 +237,12 @@ TEST(BrickIndirection, NestedLayoutEntriesNameTheDeepestCoveringBrick) {
             }
         }
     }
-    // Level-0 (0,0,0) covers 64 cells; its level-1 octants take 3 x 8 of them.
+    // Level-0 (0,0,0) covers 64 cells; its three level-1 octants take 3 x 8 of them, and the
+    // level-2 bricks 3 of level-1 (0,0,0)'s 8.
     EXPECT_EQ(shown_cells[findBrick(layout, {0, 0, 0}, 0)], 64u - 24u);
-    EXPECT_EQ(shown_cells[findBrick(layout, {1, 0, 0}, 1)], 8u - 2u);
-    EXPECT_EQ(shown_cells[findBrick(layout, {1, 0, 1}, 0)], 64u - 16u);
+    EXPECT_EQ(shown_cells[findBrick(layout, {0, 0, 0}, 1)], 8u - 3u);
+    EXPECT_EQ(shown_cells[findBrick(layout, {1, 0, 0}, 0)], 64u - 1u);
+    EXPECT_EQ(shown_cells[findBrick(layout, {1, 0, 1}, 0)], 64u);
 }
 
 void expectRejected(glm::uvec3 top, const BrickLayout& layout, ErrorCode code,

@@ -176,8 +176,9 @@ struct BakeConfig {
     EnvironmentConfig environment;
     float backfaceThreshold = 0.25f; // probe invalid when more of its rays hit back faces
     bool dilate = true;              // fill invalid probes from valid neighbours
-    // Bricked volumes: an invalid probe lying on a surface (open space within 1/8 of the
-    // finest probe spacing) is baked again just outside it instead of being dilated.
+    // Bricked volumes: an invalid probe on a box face (one lying on a wall or floor the box
+    // is placed against) is baked again just inside the box, within 1/8 of the finest probe
+    // spacing, instead of being dilated.
     bool nudge = true;
     // Dense volumes: the bake's working memory may not exceed this (error). Bricked volumes:
     // budget for their GPU bytes (texels + indirection); when it binds, the refinements whose
@@ -244,7 +245,7 @@ struct BakeStats {
     double vplMeanCut = 0.0;    // method vpl: clusters gathered per probe, mean
     // Bricked volumes (summed over them):
     uint64_t bricksPerLevel[4] = {0, 0, 0, 0}; // bricks written, by level
-    uint64_t nudgedProbes = 0;                 // probes on a surface baked just outside it
+    uint64_t nudgedProbes = 0;                 // box-face probes baked just inside the box
     uint64_t refineCandidates = 0;             // bricks whose finer probes were baked to test them
     uint64_t budgetDropped = 0;                // finer bricks removed by max_memory_mb
     // Largest disagreement (fraction of RMS irradiance) of a refinement the budget removed:
