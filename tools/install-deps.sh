@@ -3,9 +3,13 @@
 # present are left alone, and apt's lists are refreshed only when something is missing.
 set -euo pipefail
 
+# openimageio-tools: Debian's OpenImageIO CMake config declares its command-line tools
+# (iconvert, oiiotool, ...) as imported targets and fails at configure when their binaries are
+# absent, and libopenimageio-dev does not depend on that package.
+
 packages=(
     build-essential cmake ninja-build pkg-config git clang-format
-    libembree-dev libopenimageio-dev libtinygltf-dev libglm-dev libcereal-dev libimath-dev
+    libembree-dev libopenimageio-dev openimageio-tools libtinygltf-dev libglm-dev libcereal-dev libimath-dev
     nlohmann-json3-dev libcli11-dev
     libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers glslc
     libgtest-dev libgmock-dev googletest libbenchmark-dev
