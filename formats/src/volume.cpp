@@ -100,7 +100,7 @@ sh::ShRgb Volume::probe(size_t probe_index) const {
 }
 
 Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
-                          std::span<const uint8_t> validity) {
+                          std::span<const uint8_t> validity, std::span<const uint8_t> visibility) {
     std::vector<uint32_t> indirection;
     if (desc.layout == VolumeLayout::Bricked) {
         auto built =
@@ -120,6 +120,12 @@ Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
         return makeError(ErrorCode::InconsistentSize,
                          volumeLabel(desc) + ": " + std::to_string(validity.size()) +
                              " validity bytes given for a grid of " + std::to_string(probe_count));
+    }
+    if (!visibility.empty() && visibility.size() != visibility::kBytesPerProbe * probe_count) {
+        return makeError(ErrorCode::InconsistentSize,
+                         volumeLabel(desc) + ": " + std::to_string(visibility.size()) +
+                             " visibility bytes given for a grid of " +
+                             std::to_string(probe_count) + " probes (6 per probe)");
     }
 
     Volume volume;
@@ -169,6 +175,7 @@ Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
     } else {
         volume.validity.assign(validity.begin(), validity.end());
     }
+    volume.visibility.assign(visibility.begin(), visibility.end());
     volume.indirection = std::move(indirection);
     volume.desc = std::move(desc);
     return volume;
@@ -232,6 +239,13 @@ Result<void> validateVolume(const Volume& volume) {
             return makeError(ErrorCode::OutOfRange,
                              label + ": validity byte " + std::to_string(v) + " is not 0 or 1");
         }
+    }
+    if (volume.hasVisibility() &&
+        volume.visibility.size() != visibility::kBytesPerProbe * probe_count) {
+        return makeError(ErrorCode::InconsistentSize,
+                         label + ": " + std::to_string(volume.visibility.size()) +
+                             " visibility bytes for " + std::to_string(probe_count) +
+                             " probes (6 per probe, or none)");
     }
     const size_t components = size_t(volume.planes()) * probe_count * 4;
     const size_t have_f32 = volume.texelsF32.size();

@@ -21,6 +21,7 @@ struct AxisTaps {
     uint32_t index[2] = {0, 0};
     float weight[2] = {1.0f, 0.0f};
     int count = 1;
+    float coord = 0.0f; // the clamped coordinate (visibility offsets are coord - index)
 };
 
 AxisTaps axisTaps(float grid_coord, uint32_t resolution) {
@@ -29,6 +30,7 @@ AxisTaps axisTaps(float grid_coord, uint32_t resolution) {
     // out of range.
     const float g = std::isnan(grid_coord) ? 0.0f : std::clamp(grid_coord, 0.0f, last);
     AxisTaps taps;
+    taps.coord = g;
     const float lower = std::floor(g);
     taps.index[0] = uint32_t(lower);
     if (taps.index[0] + 1 < resolution) {
@@ -49,18 +51,30 @@ float depthInside(const grid::Aabb& box, glm::vec3 local) {
 }
 
 // Step 3 (and B4): the taps' stored texels of every plane, weighted and summed, then unpacked.
-// `probe_of(x, y, z)` gives the probe index of a tap's per-axis indices.
+// `probe_of(x, y, z)` gives the probe index of a tap's per-axis indices. With visibility data
+// (step V) each tap's trilinear weight is scaled by vis + kFloor and the sum normalised.
 template <class ProbeOf>
 sh::ShRgb interpolateTexels(const Volume& volume, const AxisTaps& tx, const AxisTaps& ty,
                             const AxisTaps& tz, ProbeOf probe_of) {
     const uint32_t planes = volume.planes();
+    const bool visible_weights = volume.hasVisibility();
     glm::vec4 accumulated[7] = {};
+    float weight_sum = 0.0f;
     for (int k = 0; k < tz.count; ++k) {
         for (int j = 0; j < ty.count; ++j) {
             const float wyz = ty.weight[j] * tz.weight[k];
             for (int i = 0; i < tx.count; ++i) {
-                const float w = tx.weight[i] * wyz;
+                float w = tx.weight[i] * wyz;
                 const size_t probe = probe_of(tx.index[i], ty.index[j], tz.index[k]);
+                if (visible_weights) {
+                    const glm::vec3 offset(tx.coord - float(tx.index[i]),
+                                           ty.coord - float(ty.index[j]),
+                                           tz.coord - float(tz.index[k]));
+                    w *= visibility::probeVisibility(
+                             &volume.visibility[visibility::kBytesPerProbe * probe], offset) +
+                         visibility::kFloor;
+                    weight_sum += w;
+                }
                 // Volume::texel decodes half texels to float first, as a GPU's filtering does.
                 for (uint32_t p = 0; p < planes; ++p) {
                     accumulated[p] += w * volume.texel(p, probe);
@@ -68,43 +82,80 @@ sh::ShRgb interpolateTexels(const Volume& volume, const AxisTaps& tx, const Axis
             }
         }
     }
+    if (visible_weights) {
+        for (uint32_t p = 0; p < planes; ++p) {
+            accumulated[p] /= weight_sum;
+        }
+    }
     return unpackProbe(accumulated, volume.desc.shOrder);
 }
 
-// Bricked steps B1-B4 of sampler.hpp; pk_brick_uvw (shaders/probe_volume.glsl) is the GPU twin,
-// whose hardware trilinear filtering inside the brick's atlas slot is the loop below.
-sh::ShRgb sampleBrickedSh(const Volume& volume, glm::vec3 world_position) {
-    const grid::GridLayout& layout = volume.desc.grid;
-    const brick::BrickLayout& bricks = volume.desc.bricks;
-    const glm::uvec3 top = layout.resolution();
-    const grid::Aabb& box = layout.bounds();
-    const glm::vec3 local = layout.frame().toLocal(world_position);
-    const glm::vec3 cell_coord =
-        (local - box.min) / box.size() * glm::vec3(brick::finestCells(top, bricks.maxLevel));
-    const brick::BrickSample at = brick::locate(top, bricks, volume.indirection, cell_coord);
-    const size_t first_probe = size_t(at.brick) * brick::kBrickProbeCount;
-    const AxisTaps tx = axisTaps(at.local.x, brick::kBrickSize);
-    const AxisTaps ty = axisTaps(at.local.y, brick::kBrickSize);
-    const AxisTaps tz = axisTaps(at.local.z, brick::kBrickSize);
-    return interpolateTexels(volume, tx, ty, tz, [first_probe](uint32_t x, uint32_t y, uint32_t z) {
-        return first_probe + x + brick::kBrickSize * (y + brick::kBrickSize * z);
-    });
+// The visible share of the trilinear weight, sum trilinear_i * vis_i (1 without visibility).
+template <class ProbeOf>
+float visibleShare(const Volume& volume, const AxisTaps& tx, const AxisTaps& ty, const AxisTaps& tz,
+                   ProbeOf probe_of) {
+    if (!volume.hasVisibility()) {
+        return 1.0f;
+    }
+    float share = 0.0f;
+    for (int k = 0; k < tz.count; ++k) {
+        for (int j = 0; j < ty.count; ++j) {
+            for (int i = 0; i < tx.count; ++i) {
+                const size_t probe = probe_of(tx.index[i], ty.index[j], tz.index[k]);
+                const glm::vec3 offset(tx.coord - float(tx.index[i]), ty.coord - float(ty.index[j]),
+                                       tz.coord - float(tz.index[k]));
+                share += tx.weight[i] * ty.weight[j] * tz.weight[k] *
+                         visibility::probeVisibility(
+                             &volume.visibility[visibility::kBytesPerProbe * probe], offset);
+            }
+        }
+    }
+    return share;
 }
 
-} // namespace
-
-sh::ShRgb sampleVolumeSh(const Volume& volume, glm::vec3 world_position) {
+// The taps of one volume at a world position (steps 1-2 or B1-B2) handed to `fn(tx, ty, tz,
+// probe_of)`.
+template <class Fn>
+auto withTaps(const Volume& volume, glm::vec3 world_position, Fn fn) {
     if (volume.desc.layout == VolumeLayout::Bricked) {
-        return sampleBrickedSh(volume, world_position);
+        const grid::GridLayout& layout = volume.desc.grid;
+        const brick::BrickLayout& bricks = volume.desc.bricks;
+        const glm::uvec3 top = layout.resolution();
+        const grid::Aabb& box = layout.bounds();
+        const glm::vec3 local = layout.frame().toLocal(world_position);
+        const glm::vec3 cell_coord =
+            (local - box.min) / box.size() * glm::vec3(brick::finestCells(top, bricks.maxLevel));
+        const brick::BrickSample at = brick::locate(top, bricks, volume.indirection, cell_coord);
+        const size_t first_probe = size_t(at.brick) * brick::kBrickProbeCount;
+        return fn(axisTaps(at.local.x, brick::kBrickSize), axisTaps(at.local.y, brick::kBrickSize),
+                  axisTaps(at.local.z, brick::kBrickSize),
+                  [first_probe](uint32_t x, uint32_t y, uint32_t z) {
+                      return first_probe + x + brick::kBrickSize * (y + brick::kBrickSize * z);
+                  });
     }
     const grid::GridLayout& layout = volume.desc.grid;
     const glm::vec3 g = layout.worldToGrid(world_position);
     const glm::uvec3 res = layout.resolution();
-    const AxisTaps tx = axisTaps(g.x, res.x);
-    const AxisTaps ty = axisTaps(g.y, res.y);
-    const AxisTaps tz = axisTaps(g.z, res.z);
-    return interpolateTexels(volume, tx, ty, tz, [&layout](uint32_t x, uint32_t y, uint32_t z) {
-        return layout.linearIndex(glm::uvec3(x, y, z));
+    return fn(axisTaps(g.x, res.x), axisTaps(g.y, res.y), axisTaps(g.z, res.z),
+              [&layout](uint32_t x, uint32_t y, uint32_t z) {
+                  return layout.linearIndex(glm::uvec3(x, y, z));
+              });
+}
+
+} // namespace
+
+// Dense steps 1-4 and bricked B1-B4 (pk_volume_uvw / pk_brick_uvw and the fetches in
+// shaders/probe_volume.glsl are the GPU twin; without visibility the hardware's trilinear
+// filtering is the tap loop).
+sh::ShRgb sampleVolumeSh(const Volume& volume, glm::vec3 world_position) {
+    return withTaps(volume, world_position, [&volume](auto tx, auto ty, auto tz, auto probe_of) {
+        return interpolateTexels(volume, tx, ty, tz, probe_of);
+    });
+}
+
+float visibleWeight(const Volume& volume, glm::vec3 world_position) {
+    return withTaps(volume, world_position, [&volume](auto tx, auto ty, auto tz, auto probe_of) {
+        return visibleShare(volume, tx, ty, tz, probe_of);
     });
 }
 

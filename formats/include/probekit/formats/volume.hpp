@@ -30,6 +30,7 @@
 #include "probekit/formats/grid.hpp"
 #include "probekit/formats/result.hpp"
 #include "probekit/formats/sh.hpp"
+#include "probekit/formats/visibility.hpp"
 
 namespace probekit {
 
@@ -84,7 +85,11 @@ struct VolumeDesc {
 
 struct Volume {
     VolumeDesc desc;
-    std::vector<uint8_t> validity;   // one byte per probe
+    std::vector<uint8_t> validity; // one byte per probe
+    // Occluder distances for leak-proof interpolation (visibility.hpp): empty (plain
+    // trilinear interpolation, as in .pvol version 1 files) or visibility::kBytesPerProbe per
+    // probe, probe-major (probe i's six half-axes at 6 i .. 6 i + 5).
+    std::vector<uint8_t> visibility;
     std::vector<float> texelsF32;    // planeCount * probeCount * 4, when storage == Float32
     std::vector<uint16_t> texelsF16; // planeCount * probeCount * 4, when storage == Float16
     // Bricked only: brick index per finest cell (brick::buildIndirection), derived from
@@ -100,7 +105,13 @@ struct Volume {
     // Bytes of the volume's GPU data: texels plus, for bricked volumes, the u32 indirection.
     // (runtime::GpuVolumeSet rounds a brick atlas's slot count up to a power of two, so its
     // allocation can hold up to twice these texels.)
-    size_t gpuBytes() const { return texelBytes() + indirection.size() * sizeof(uint32_t); }
+    size_t gpuBytes() const {
+        return texelBytes() + indirection.size() * sizeof(uint32_t) + visibilityGpuBytes();
+    }
+    bool hasVisibility() const { return !visibility.empty(); }
+    // Bytes the runtime uploads for the visibility: one RGBA16_UINT texel (8 bytes) per probe
+    // (runtime::GpuVolumeSet), 0 without visibility data.
+    size_t visibilityGpuBytes() const { return hasVisibility() ? probeCount() * 8 : 0; }
     size_t validCount() const;
 
     // Texel of one plane at one probe, converted to float.
@@ -114,18 +125,22 @@ void packProbe(const sh::ShRgb& sh, sh::Order order, glm::vec4* out);
 sh::ShRgb unpackProbe(const glm::vec4* texels, sh::Order order);
 
 // Builds a volume from per-probe coefficients (grid order, or brick order for bricked volumes)
-// and validity (empty = all valid). Fails, naming the volume and the offending probe or value,
+// and validity (empty = all valid) and visibility (empty = none; else
+// visibility::kBytesPerProbe per probe). Fails, naming the volume and the offending probe or value,
 // when:
 //  * a bricked layout fails brick::buildIndirection (a gap, a repeated brick, ...);
-//  * probes.size() or validity.size() differs from desc.probeCount();
+//  * probes.size() or validity.size() differs from desc.probeCount(), or visibility.size()
+//    from 0 and kBytesPerProbe * desc.probeCount();
 //  * a coefficient is NaN or infinite;
 //  * storage is Float16 and a coefficient's magnitude exceeds kHalfMax (the message gives the
 //    largest magnitude and suggests float storage) -- never a silent infinity.
 Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
-                          std::span<const uint8_t> validity = {});
+                          std::span<const uint8_t> validity = {},
+                          std::span<const uint8_t> visibility = {});
 
 // Checks a volume's internal consistency (sizes, enums, bounds, resolution, validity bytes;
-// for bricked volumes the tiling and that `indirection` matches it).
+// for bricked volumes the tiling and that `indirection` matches it; visibility empty or
+// kBytesPerProbe per probe).
 Result<void> validateVolume(const Volume& volume);
 
 } // namespace probekit

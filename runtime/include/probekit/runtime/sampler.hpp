@@ -25,6 +25,12 @@
 //       (volume probe b * 64 + x + 4 (y + 4 z)) at l: probes floor(l) and floor(l) + 1
 //       (an axis at l = 3 uses probe 3 alone), weights fract(l).
 //   B4. Unpack and evaluate as step 4.
+// Visibility (step V, when the volume has visibility data: formats/.../visibility.hpp): in step
+// 3 (B3) each of the (up to 8) taps' trilinear weight is multiplied by vis_i + kFloor, where
+// vis_i is the probe's visibility at the tap offset (clamped coordinate minus the tap's probe
+// coordinate, grid or brick-local units), and the weighted sum is divided by the sum of the
+// weights. Without visibility data this is step 3 unchanged. The GPU cannot use its
+// trilinear filter for this; pk_volume_texels fetches the taps one by one.
 // Outside the box this clamps to the nearest border brick's values, as step 2 does for dense
 // volumes. Fades, blending and the nearest-volume rule below use the box alone, whatever the
 // layout.
@@ -56,6 +62,11 @@ namespace probekit::runtime {
 
 // The radiance SH of one volume at world position p (steps 1-4 above, before the normal).
 sh::ShRgb sampleVolumeSh(const Volume& volume, glm::vec3 world_position);
+
+// The visible share of the trilinear weight at p, sum trilinear_i * vis_i in [0, 1] (step V;
+// 1 for a volume without visibility data): 1 where no tap is hidden, near 0 where interpolation
+// would otherwise pull light through a wall. What `probekit render --view leak` shows.
+float visibleWeight(const Volume& volume, glm::vec3 world_position);
 
 // The blend weight w(p) of one volume (see above), in [0, 1].
 float volumeWeight(const Volume& volume, glm::vec3 world_position);
