@@ -18,6 +18,7 @@
 #include "path_integrator.hpp"
 #include "probekit/baker/bake.hpp"
 #include "ray_tracer.hpp"
+#include "visibility.hpp"
 #include "vpl_gather.hpp"
 #include "vpl_integrator.hpp"
 #include "vpl_paths.hpp"
@@ -493,7 +494,13 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
             result.stats.invalidProbes += b.invalidProbes;
             result.stats.nudgedProbes += b.nudgedProbes;
             result.warnings.insert(result.warnings.end(), b.warnings.begin(), b.warnings.end());
-            Result<Volume> volume = makeVolume(b.desc, b.probes, b.validity);
+            std::vector<uint8_t> vis;
+            if (config.visibility) {
+                vis = traceVolumeVisibility(*tracer.value(), b.desc, b.validity,
+                                            result.stats.threads);
+                rays.fetch_add(kVisibilityRaysPerProbe * b.desc.probeCount());
+            }
+            Result<Volume> volume = makeVolume(b.desc, b.probes, b.validity, vis);
             if (!volume) {
                 return volume.error();
             }
@@ -522,7 +529,13 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
                                           " invalid probes have no valid probe to dilate from");
             }
         }
-        Result<Volume> volume = makeVolume(desc, probes, validity);
+        // Visibility from the validity before dilation: dilated probes stay hidden.
+        std::vector<uint8_t> vis;
+        if (config.visibility) {
+            vis = traceVolumeVisibility(*tracer.value(), desc, validity, result.stats.threads);
+            rays.fetch_add(kVisibilityRaysPerProbe * count);
+        }
+        Result<Volume> volume = makeVolume(desc, probes, validity, vis);
         if (!volume) {
             return volume.error();
         }

@@ -478,7 +478,7 @@ BakeConfig parseTop(const Reader& r, const Json& j, const std::filesystem::path&
     }
     if (j.contains("validity")) {
         const Json& v = j["validity"];
-        r.checkKeys(v, "validity", {"backface_threshold", "dilate", "nudge"});
+        r.checkKeys(v, "validity", {"backface_threshold", "dilate", "nudge", "visibility"});
         if (v.contains("backface_threshold")) {
             const double t = r.number(v["backface_threshold"], "validity.backface_threshold");
             if (t < 0.0 || t > 1.0) {
@@ -497,6 +497,12 @@ BakeConfig parseTop(const Reader& r, const Json& j, const std::filesystem::path&
                 r.fail("validity.nudge", "must be true or false");
             }
             c.nudge = v["nudge"].get<bool>();
+        }
+        if (v.contains("visibility")) {
+            if (!v["visibility"].is_boolean()) {
+                r.fail("validity.visibility", "must be true or false");
+            }
+            c.visibility = v["visibility"].get<bool>();
         }
     }
     if (j.contains("target_error")) {
@@ -649,8 +655,10 @@ std::string describeConfig(const BakeConfig& c) {
                             {"rotation_deg", c.environment.rotationDeg}};
         break;
     }
-    j["validity"] = {
-        {"backface_threshold", c.backfaceThreshold}, {"dilate", c.dilate}, {"nudge", c.nudge}};
+    j["validity"] = {{"backface_threshold", c.backfaceThreshold},
+                     {"dilate", c.dilate},
+                     {"nudge", c.nudge},
+                     {"visibility", c.visibility}};
     j["max_memory_mb"] = c.maxMemoryBytes >> 20;
     if (c.targetError) {
         j["target_error"] = *c.targetError;

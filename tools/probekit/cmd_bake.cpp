@@ -47,6 +47,7 @@ struct BakeOptionsCli {
     std::optional<int> sceneIndex;
     std::string report;
     bool quiet = false;
+    bool noVisibility = false;
     std::optional<double> targetError;
     bool verify = false;
     uint32_t verifyPoints = 256;
@@ -172,6 +173,9 @@ int runBake(const BakeOptionsCli& o) {
     if (o.lpvDirect) {
         config.lpv.direct =
             *o.lpvDirect == "traced" ? baker::LpvDirect::Traced : baker::LpvDirect::Propagated;
+    }
+    if (o.noVisibility) {
+        config.visibility = false;
     }
     if (o.maxMemoryMb) {
         config.maxMemoryBytes = *o.maxMemoryMb << 20;
@@ -502,6 +506,9 @@ void addBakeCommand(CLI::App& app, Command& selected) {
     cmd->add_option("--scene", o->sceneIndex, "glTF scene index (default: the file's default)");
     cmd->add_option("--report", o->report, "write a JSON report of the bake");
     cmd->add_flag("-q,--quiet", o->quiet, "print nothing but errors");
+    cmd->add_flag("--no-visibility", o->noVisibility,
+                  "store no per-probe visibility (validity.visibility false): plain trilinear "
+                  "interpolation, which leaks light through walls between probes");
     cmd->add_option("--target-error", o->targetError,
                     "choose density, refinement, SH order and samples for this relative RMS "
                     "irradiance error (e.g. 0.05)")

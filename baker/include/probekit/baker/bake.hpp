@@ -180,6 +180,9 @@ struct BakeConfig {
     // is placed against) is baked again just inside the box, within 1/8 of the finest probe
     // spacing, instead of being dilated.
     bool nudge = true;
+    // Store per-probe occluder distances (formats/.../visibility.hpp) so that interpolation
+    // between probes does not carry light through walls; 54 rays per probe.
+    bool visibility = true;
     // Dense volumes: the bake's working memory may not exceed this (error). Bricked volumes:
     // budget for their GPU bytes (texels + indirection); when it binds, the refinements whose
     // removal costs the least error are dropped (BakeStats::budgetDropped / budgetError).
