@@ -36,11 +36,20 @@ constexpr size_t kChecksumOffset = 24;
 // in. Files are always written little-endian, so anything else is damage, not a foreign machine.
 constexpr uint8_t kLittleEndianFlag = 1;
 
-// Smallest encoding of one volume with empty name and no probe data: layout, name length,
-// bounds, resolution, position mode, rotation, translation, sh order, storage, priority,
-// fade distance, validity count, texel count. Bounds the volume count by the bytes that remain.
-constexpr size_t kMinVolumeBytes =
+// Smallest encoding of one version-1 volume with empty name and no probe data: layout, name
+// length, bounds, resolution, position mode, rotation, translation, sh order, storage,
+// priority, fade distance, validity count, texel count. Version 2 adds the visibility flag.
+// Bounds the volume count by the bytes that remain.
+constexpr size_t kMinVolumeBytesV1 =
     1 + 8 + 6 * 4 + 3 * 4 + 1 + 4 * 4 + 3 * 4 + 1 + 1 + 4 + 4 + 8 + 8;
+constexpr size_t kVisibilityFlagBytes = 1;
+constexpr size_t kMinVolumeBytes = kMinVolumeBytesV1 + kVisibilityFlagBytes;
+constexpr size_t minVolumeBytes(uint32_t version) {
+    return version >= 2 ? kMinVolumeBytes : kMinVolumeBytesV1;
+}
+// Values of the version-2 visibility flag.
+constexpr uint8_t kVisibilityAbsent = 0;
+constexpr uint8_t kVisibilityPresent = 1;
 // A bricked volume adds its max level and brick count, then this much per brick: level and
 // coord. Bounds the brick count by the bytes that remain.
 constexpr size_t kBrickedExtraBytes = 1 + 8;
@@ -254,11 +263,16 @@ private:
 //     u64     validity byte count (== probe count: grid probes, or 64 * B), then the bytes
 //     u64     texel component count (== planes * probes * 4), then the components as f32 or
 //             as binary16 bit patterns (u16), plane-major as volume.hpp describes
+//     version 2 on:
+//       u8      visibility flag (0 = none, 1 = present)
+//       flag 1: visibility::kBytesPerProbe (6) * probes bytes, probe-major (visibility.hpp:
+//               probe i's half-axes +x, -x, +y, -y, +z, -z at 6 i .. 6 i + 5); no count
 //
 // Counts are stored even though the resolution (or brick count) implies them so that a reader
-// can check the two against each other; the indirection is not stored (the reader derives it
-// from the bricks, brick::buildIndirection); blocks go through binary_data so that loading
-// them is one bulk copy.
+// can check the two against each other; the visibility block, added later, is sized by the
+// probe count alone (its flag says whether it is there); the indirection is not stored (the
+// reader derives it from the bricks, brick::buildIndirection); blocks go through binary_data
+// so that loading them is one bulk copy.
 // ---------------------------------------------------------------------------------------------
 
 void saveString(cereal::PortableBinaryOutputArchive& archive, const std::string& text) {
@@ -307,6 +321,10 @@ void serialize(cereal::PortableBinaryOutputArchive& archive, const PvolFile& fil
             archive(cereal::binary_data(volume.texelsF16.data(),
                                         volume.texelsF16.size() * sizeof(uint16_t)));
         }
+
+        // Version 2: the visibility flag, then the block (validateVolume guarantees its size).
+        archive(volume.hasVisibility() ? kVisibilityPresent : kVisibilityAbsent);
+        archive(cereal::binary_data(volume.visibility.data(), volume.visibility.size()));
     }
 }
 
@@ -314,8 +332,10 @@ void serialize(cereal::PortableBinaryOutputArchive& archive, const PvolFile& fil
 // fixed-size field runs past the end); parsePayload turns both into an Error.
 class PayloadReader {
 public:
-    PayloadReader(PayloadSource& payload, std::string source)
-        : m_source(std::move(source)), m_payload(payload), m_stream(&m_payload),
+    // `version` is the header's (kPvolOldestVersion .. kPvolVersion): version 1 volumes have
+    // no visibility flag.
+    PayloadReader(PayloadSource& payload, std::string source, uint32_t version)
+        : m_source(std::move(source)), m_version(version), m_payload(payload), m_stream(&m_payload),
           m_archive(m_stream) {}
 
     PvolFile read(std::string& context) {
@@ -331,10 +351,11 @@ public:
         }
 
         const uint64_t volume_count = readValue<uint64_t>();
-        if (volume_count > remaining() / kMinVolumeBytes) {
+        const size_t min_volume_bytes = minVolumeBytes(m_version);
+        if (volume_count > remaining() / min_volume_bytes) {
             fail(ErrorCode::Truncated, context,
                  "volume count " + std::to_string(volume_count) + " needs at least " +
-                     std::to_string(kMinVolumeBytes) + " bytes each but only " +
+                     std::to_string(min_volume_bytes) + " bytes each but only " +
                      std::to_string(remaining()) + " payload bytes remain");
         }
         for (uint64_t i = 0; i < volume_count; ++i) {
@@ -500,6 +521,10 @@ private:
                                           volume.texelsF16.size() * sizeof(uint16_t)));
         }
 
+        if (m_version >= 2) {
+            readVisibility(volume, context);
+        }
+
         if (auto valid = validateVolume(volume); !valid) {
             // validateVolume labels its messages "volume '<name>': "; the context already says
             // that, with the file and the index.
@@ -543,12 +568,29 @@ private:
         volume.indirection = std::move(built).value();
     }
 
+    // Version 2's visibility flag and, when it says so, kBytesPerProbe bytes per probe.
+    void readVisibility(Volume& volume, const std::string& context) {
+        const uint8_t flag = readValue<uint8_t>();
+        if (flag == kVisibilityAbsent) {
+            return;
+        }
+        if (flag != kVisibilityPresent) {
+            fail(ErrorCode::BadEnum, context,
+                 "visibility flag " + std::to_string(flag) + " is not 0 (none) or 1 (present)");
+        }
+        const size_t probe_count = volume.probeCount();
+        requireBytes(probe_count, visibility::kBytesPerProbe, context, "visibility probe count");
+        volume.visibility.resize(probe_count * visibility::kBytesPerProbe);
+        m_archive(cereal::binary_data(volume.visibility.data(), volume.visibility.size()));
+    }
+
     static std::string resolutionText(glm::uvec3 resolution) {
         return std::to_string(resolution.x) + "x" + std::to_string(resolution.y) + "x" +
                std::to_string(resolution.z);
     }
 
     std::string m_source;
+    uint32_t m_version;
     PayloadSource& m_payload;
     std::istream m_stream;
     cereal::PortableBinaryInputArchive m_archive;
@@ -560,7 +602,7 @@ size_t estimatePayloadBytes(const PvolFile& file) {
                    meta.parametersJson.size() + 3 * 8 + 8;
     for (const Volume& volume : file.volumes) {
         bytes += kMinVolumeBytes + volume.desc.name.size() + volume.validity.size() +
-                 volume.texelBytes();
+                 volume.texelBytes() + volume.visibility.size();
         if (volume.desc.layout == VolumeLayout::Bricked) {
             bytes += kBrickedExtraBytes + kBrickBytes * volume.desc.bricks.bricks.size();
         }
@@ -602,6 +644,7 @@ Error checksumError(const std::string& source) {
 }
 
 struct PvolHeader {
+    uint32_t version = 0;
     uint64_t payloadBytes = 0;
     uint64_t checksum = 0;
 };
@@ -622,20 +665,23 @@ Result<PvolHeader> parseHeader(std::span<const uint8_t> head, uint64_t file_byte
                                                    "-byte header");
     }
     const uint32_t version = loadLe32(head.data() + kVersionOffset);
-    if (version != kPvolVersion) {
+    if (version < kPvolOldestVersion || version > kPvolVersion) {
         return makeError(ErrorCode::UnsupportedVersion,
                          source + ": format version " + std::to_string(version) +
-                             " is not supported; this build reads version " +
+                             " is not supported; this build reads versions " +
+                             std::to_string(kPvolOldestVersion) + " to " +
                              std::to_string(kPvolVersion));
     }
+    // Every version so far has the same 32-byte header.
     const uint32_t header_bytes = loadLe32(head.data() + kHeaderBytesOffset);
     if (header_bytes != kPvolHeaderBytes) {
         return makeError(ErrorCode::InconsistentSize,
                          source + ": header size " + std::to_string(header_bytes) + " is not the " +
                              std::to_string(kPvolHeaderBytes) + " bytes of version " +
-                             std::to_string(kPvolVersion));
+                             std::to_string(version));
     }
     PvolHeader header;
+    header.version = version;
     header.payloadBytes = loadLe64(head.data() + kPayloadBytesOffset);
     header.checksum = loadLe64(head.data() + kChecksumOffset);
     const uint64_t available = file_bytes - kPvolHeaderBytes;
@@ -655,7 +701,7 @@ Result<PvolHeader> parseHeader(std::span<const uint8_t> head, uint64_t file_byte
 
 // Parses a whole payload; every failure, whether found by the checks or by cereal running out
 // of bytes, becomes an Error naming the source and the volume being read.
-Result<PvolFile> parsePayload(PayloadSource& payload, const std::string& source) {
+Result<PvolFile> parsePayload(PayloadSource& payload, uint32_t version, const std::string& source) {
     std::string context = source;
     try {
         const auto first = payload.sgetc();
@@ -666,7 +712,7 @@ Result<PvolFile> parsePayload(PayloadSource& payload, const std::string& source)
             fail(ErrorCode::BadEnum, source,
                  "payload byte-order flag " + std::to_string(first) + " is not 1 (little-endian)");
         }
-        PayloadReader reader(payload, source);
+        PayloadReader reader(payload, source, version);
         return reader.read(context);
     } catch (const DecodeFailure& failure) {
         return failure.error;
@@ -717,7 +763,7 @@ Result<PvolFile> decodePvol(std::span<const uint8_t> bytes, std::string_view sou
         return checksumError(source);
     }
     ByteSource reader(payload);
-    return parsePayload(reader, source);
+    return parsePayload(reader, header.value().version, source);
 }
 
 Result<PvolFile> readPvol(const std::filesystem::path& path) {
@@ -764,7 +810,7 @@ Result<PvolFile> readPvol(const std::filesystem::path& path) {
     // A mismatch still wins over whatever the parser said about the damaged bytes, exactly as
     // in decodePvol, which checks it first.
     FileSource reader(fd.get(), header.value().payloadBytes, source);
-    Result<PvolFile> result = parsePayload(reader, source);
+    Result<PvolFile> result = parsePayload(reader, header.value().version, source);
     uint64_t digest = 0;
     try {
         digest = reader.finishDigest();

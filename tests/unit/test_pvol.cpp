@@ -100,6 +100,9 @@ struct VolumeOffsets {
     size_t validity = 0;
     size_t texelCount = 0;
     size_t texels = 0;
+    size_t visibilityFlag = 0; // version 2: u8 0 or 1
+    size_t visibility = 0;     // version 2, flag 1: 6 bytes per probe
+    size_t end = 0;            // one past the volume's last byte
 };
 
 VolumeOffsets locateVolume(const std::vector<uint8_t>& bytes, const Volume& volume) {
@@ -132,6 +135,9 @@ VolumeOffsets locateVolume(const std::vector<uint8_t>& bytes, const Volume& volu
     at.validity = at.validityCount + 8;
     at.texelCount = at.validity + volume.probeCount();
     at.texels = at.texelCount + 8;
+    at.visibilityFlag = at.texels + volume.texelBytes();
+    at.visibility = at.visibilityFlag + 1;
+    at.end = at.visibility + volume.visibility.size();
 
     EXPECT_EQ(loadAt<uint64_t>(bytes, at.nameLength), volume.desc.name.size());
     EXPECT_EQ(bytes[at.layout], uint8_t(volume.desc.layout));
@@ -141,6 +147,10 @@ VolumeOffsets locateVolume(const std::vector<uint8_t>& bytes, const Volume& volu
     EXPECT_EQ(loadAt<uint64_t>(bytes, at.validityCount), volume.probeCount());
     EXPECT_EQ(loadAt<uint64_t>(bytes, at.texelCount),
               size_t(volume.planes()) * volume.probeCount() * 4);
+    EXPECT_LE(at.end, bytes.size());
+    if (at.end <= bytes.size()) {
+        EXPECT_EQ(bytes[at.visibilityFlag], volume.hasVisibility() ? 1 : 0);
+    }
     return at;
 }
 
@@ -182,7 +192,20 @@ struct VolumeSpec {
     int32_t priority = 0;
     float fade = 0.0f;
     uint32_t seed = 0;
+    bool visibility = false; // give the volume visibility bytes (testVisibility)
 };
+
+// Visibility bytes for `probe_count` probes: arbitrary bytes (the format gives no byte value a
+// meaning of its own), but probe 0 holds the extremes 0 (surface at the probe) and 255 (clear).
+std::vector<uint8_t> testVisibility(uint32_t volume_seed, size_t probe_count) {
+    std::vector<uint8_t> bytes(probe_count * visibility::kBytesPerProbe);
+    for (size_t i = 0; i < bytes.size(); ++i) {
+        bytes[i] = uint8_t(mix((uint64_t(volume_seed) << 40) ^ (uint64_t(1) << 39) ^ i) >> 17);
+    }
+    const uint8_t extremes[6] = {0, visibility::kClear, 1, 254, visibility::kClear, 0};
+    std::memcpy(bytes.data(), extremes, sizeof(extremes));
+    return bytes;
+}
 
 struct TestVolume {
     Volume volume;
@@ -212,7 +235,9 @@ TestVolume buildVolume(const VolumeSpec& spec) {
             validity[i] = kProbeInvalid;
         }
     }
-    auto made = makeVolume(desc, out.probes, validity);
+    const std::vector<uint8_t> vis =
+        spec.visibility ? testVisibility(spec.seed, probe_count) : std::vector<uint8_t>();
+    auto made = makeVolume(desc, out.probes, validity, vis);
     EXPECT_TRUE(made.ok()) << (made.ok() ? "" : made.error().message);
     out.volume = std::move(made).value();
     return out;
@@ -238,7 +263,7 @@ grid::RigidFrame tiltedFrame() {
 
 // A small two-volume file for the rejection tests. Names are distinctive byte strings so their
 // offsets can be found in the encoding; each test damages volume 1 so that the message has to
-// carry the index and the name.
+// carry the index and the name. Volume 0 has no visibility, volume 1 (the last) has.
 struct SampleFile {
     PvolFile file;
     std::vector<uint8_t> bytes;
@@ -267,7 +292,8 @@ SampleFile sampleFile() {
                                                .frame = tiltedFrame(),
                                                .priority = 3,
                                                .fade = 0.5f,
-                                               .seed = 2})
+                                               .seed = 2,
+                                               .visibility = true})
                                       .volume);
     sample.bytes = encodePvol(sample.file);
     sample.target = locateVolume(sample.bytes, sample.file.volumes[1]);
@@ -319,7 +345,7 @@ VolumeSpec brickedSpec(const std::string& name, Order order, Storage storage, ui
             .seed = seed};
 }
 
-// Like sampleFile(), but volume 1 is bricked (mixedBricks(), L1, half).
+// Like sampleFile(), but volume 1 is bricked (mixedBricks(), L1, half, with visibility).
 constexpr const char* kBrickedName = "vault_SENTINEL_b21c";
 
 SampleFile brickedSampleFile() {
@@ -330,6 +356,7 @@ SampleFile brickedSampleFile() {
     spec.frame = tiltedFrame();
     spec.priority = 2;
     spec.fade = 0.25f;
+    spec.visibility = true;
     sample.file.volumes.push_back(buildVolume(spec).volume);
     sample.bytes = encodePvol(sample.file);
     sample.target = locateVolume(sample.bytes, sample.file.volumes[1]);
@@ -450,6 +477,7 @@ TEST_P(PvolRoundTrip, SeveralVolumesSurviveWriteAndRead) {
     const auto [storage, mode, order] = GetParam();
     const bool corner = mode == PositionMode::Corner;
     // Corner placement needs >= 2 probes on every axis, so its small grids grow to 2 there.
+    // "single" has no visibility (it must come back without), the others have.
     const std::vector<VolumeSpec> specs = {
         {.name = "single",
          .resolution = corner ? glm::uvec3(2, 2, 2) : glm::uvec3(1, 1, 1),
@@ -461,8 +489,14 @@ TEST_P(PvolRoundTrip, SeveralVolumesSurviveWriteAndRead) {
          .frame = tiltedFrame(),
          .priority = 0,
          .fade = 0.25f,
-         .seed = 12},
-        {.name = "hall", .resolution = {64, 32, 16}, .priority = 7, .fade = 1.5f, .seed = 13},
+         .seed = 12,
+         .visibility = true},
+        {.name = "hall",
+         .resolution = {64, 32, 16},
+         .priority = 7,
+         .fade = 1.5f,
+         .seed = 13,
+         .visibility = true},
     };
 
     PvolFile file;
@@ -493,6 +527,8 @@ TEST_P(PvolRoundTrip, SeveralVolumesSurviveWriteAndRead) {
         const Volume& have = got.volumes[v];
         expectSameDesc(have.desc, want.desc);
         EXPECT_EQ(have.validity, want.validity);
+        ASSERT_EQ(want.hasVisibility(), specs[v].visibility);
+        EXPECT_EQ(have.visibility, want.visibility);
         EXPECT_TRUE(validateVolume(have).ok());
 
         // Stored texels come back bit for bit, whatever the storage.
@@ -540,12 +576,13 @@ INSTANTIATE_TEST_SUITE_P(Pvol, PvolRoundTrip,
                          roundTripName);
 
 // Everything a bricked volume carries comes back: desc with its bricks, the derived
-// indirection, validity and texels bit for bit; re-encoding gives the same bytes.
+// indirection, validity, visibility and texels bit for bit; re-encoding gives the same bytes.
 void expectSameVolume(const Volume& have, const Volume& want) {
     SCOPED_TRACE("volume " + want.desc.name);
     expectSameDesc(have.desc, want.desc);
     EXPECT_EQ(have.indirection, want.indirection);
     EXPECT_EQ(have.validity, want.validity);
+    EXPECT_EQ(have.visibility, want.visibility);
     EXPECT_TRUE(sameBytes(have.texelsF32, want.texelsF32));
     EXPECT_TRUE(sameBytes(have.texelsF16, want.texelsF16));
     EXPECT_TRUE(validateVolume(have).ok());
@@ -564,9 +601,10 @@ TEST_P(PvolBrickedRoundTrip, MixedLevelsSurviveWriteAndRead) {
     mixed.frame = tiltedFrame();
     mixed.priority = -1;
     mixed.fade = 0.75f;
+    mixed.visibility = true;
     file.volumes.push_back(buildVolume(mixed).volume);
     // A second bricked volume with every brick coarser than its max level: level-0 bricks
-    // only, max level 1, so each brick covers 2 x 2 x 2 indirection entries.
+    // only, max level 1, so each brick covers 2 x 2 x 2 indirection entries; no visibility.
     VolumeSpec coarse = brickedSpec("coarse", order, storage, 22);
     coarse.resolution = {1, 2, 4};
     coarse.bricks = {1, brick::uniformLayout({1, 2, 4}, 0).bricks};
@@ -574,6 +612,8 @@ TEST_P(PvolBrickedRoundTrip, MixedLevelsSurviveWriteAndRead) {
     ASSERT_EQ(file.volumes[0].probeCount(), 16u * 64u);
     ASSERT_EQ(file.volumes[0].indirection.size(), 8u * 4u * 4u);
     ASSERT_EQ(file.volumes[1].indirection.size(), 2u * 4u * 8u);
+    ASSERT_EQ(file.volumes[0].visibility.size(), 16u * 64u * 6u);
+    ASSERT_TRUE(file.volumes[1].visibility.empty());
 
     const std::filesystem::path path = m_dir / "bricked.pvol";
     ASSERT_TRUE(writePvol(path, file).ok());
@@ -587,6 +627,7 @@ TEST_P(PvolBrickedRoundTrip, MixedLevelsSurviveWriteAndRead) {
     for (size_t v = 0; v < 2; ++v) {
         expectSameVolume(read.value().volumes[v], file.volumes[v]);
     }
+    EXPECT_TRUE(read.value().volumes[1].visibility.empty());
     EXPECT_EQ(encodePvol(read.value()), bytes) << "re-encoding changed the bytes";
 }
 
@@ -631,12 +672,255 @@ TEST(PvolEncode, HeaderMatchesTheDocumentedLayout) {
     const std::vector<uint8_t>& bytes = sample.bytes;
     const uint8_t magic[8] = {'P', 'K', 'V', 'O', 'L', '\r', '\n', 0x1a};
     EXPECT_EQ(std::memcmp(bytes.data(), magic, sizeof(magic)), 0);
-    EXPECT_EQ(loadAt<uint32_t>(bytes, kVersionOffset), kPvolVersion);
+    EXPECT_EQ(loadAt<uint32_t>(bytes, kVersionOffset), 2u);
+    EXPECT_EQ(kPvolVersion, 2u);
     EXPECT_EQ(loadAt<uint32_t>(bytes, kHeaderBytesOffset), kPvolHeaderBytes);
     EXPECT_EQ(loadAt<uint64_t>(bytes, kPayloadBytesOffset), bytes.size() - kPvolHeaderBytes);
     EXPECT_EQ(loadAt<uint64_t>(bytes, kChecksumOffset),
               xxhash64(std::span(bytes).subspan(kPvolHeaderBytes)));
     EXPECT_EQ(bytes[kPvolHeaderBytes], 1) << "payload must be written little-endian";
+}
+
+// --- visibility (version 2) ----------------------------------------------------------------------
+
+TEST(PvolVisibility, BlockMatchesTheDocumentedLayout) {
+    // Each volume ends with its u8 flag and, when the flag is 1, its 6 bytes per probe verbatim:
+    // volume 0 (none) ends at its flag, where volume 1's layout byte follows; volume 1's block
+    // ends the payload. Dense (32 probes) and bricked (16 bricks, 1024 probes) alike.
+    for (const bool bricked : {false, true}) {
+        SCOPED_TRACE(bricked ? "bricked" : "dense");
+        const SampleFile sample = bricked ? brickedSampleFile() : sampleFile();
+        const std::vector<uint8_t>& bytes = sample.bytes;
+        const VolumeOffsets first = locateVolume(bytes, sample.file.volumes[0]);
+        EXPECT_EQ(bytes[first.visibilityFlag], 0);
+        EXPECT_EQ(first.end, first.visibilityFlag + 1);
+        EXPECT_EQ(first.end, sample.target.layout);
+
+        const Volume& target = sample.file.volumes[1];
+        const size_t probes = bricked ? 16u * 64u : 32u;
+        ASSERT_EQ(target.probeCount(), probes);
+        EXPECT_EQ(target.visibility, testVisibility(bricked ? 3 : 2, probes));
+        EXPECT_EQ(bytes[sample.target.visibilityFlag], 1);
+        EXPECT_EQ(sample.target.end - sample.target.visibility, 6 * probes);
+        EXPECT_EQ(sample.target.end, bytes.size());
+        EXPECT_EQ(std::vector<uint8_t>(bytes.begin() + sample.target.visibility, bytes.end()),
+                  target.visibility);
+        const uint8_t probe0[6] = {0, 255, 1, 254, 255, 0};
+        EXPECT_EQ(std::memcmp(bytes.data() + sample.target.visibility, probe0, 6), 0);
+
+        auto got = decode(bytes);
+        ASSERT_TRUE(got.ok()) << got.error().message;
+        EXPECT_TRUE(got.value().volumes[0].visibility.empty());
+        EXPECT_EQ(got.value().volumes[1].visibility, target.visibility);
+        EXPECT_EQ(got.value().volumes[1].visibilityGpuBytes(), 8 * probes);
+    }
+}
+
+// --- version 1 files -----------------------------------------------------------------------------
+
+// Appends values in the file's byte order (little-endian = host order, asserted at the top).
+struct ByteWriter {
+    std::vector<uint8_t> bytes;
+    template <class T>
+    void put(T value) {
+        const auto* first = reinterpret_cast<const uint8_t*>(&value);
+        bytes.insert(bytes.end(), first, first + sizeof(T));
+    }
+    void putString(const std::string& text) {
+        put<uint64_t>(text.size());
+        bytes.insert(bytes.end(), text.begin(), text.end());
+    }
+};
+
+// Header + payload, with the payload size and checksum filled in.
+std::vector<uint8_t> withHeader(uint32_t version, const std::vector<uint8_t>& payload) {
+    ByteWriter file;
+    for (uint8_t c : {'P', 'K', 'V', 'O', 'L', '\r', '\n', '\x1a'}) {
+        file.put<uint8_t>(c);
+    }
+    file.put<uint32_t>(version);
+    file.put<uint32_t>(32);
+    file.put<uint64_t>(payload.size());
+    file.put<uint64_t>(xxhash64(payload));
+    file.bytes.insert(file.bytes.end(), payload.begin(), payload.end());
+    return file.bytes;
+}
+
+constexpr const char* kOldName = "old_probe";
+
+// The payload of a version-1 file, written field by field from the layout documented next to
+// serialize() in pvol.cpp (the encoder is not involved): one dense 1x1x1 L1 float volume.
+std::vector<uint8_t> handWrittenVersionOnePayload() {
+    ByteWriter p;
+    p.put<uint8_t>(1); // cereal's byte-order flag: little-endian
+    p.putString("probekit 0.0.1");
+    p.putString("synthetic");
+    p.putString("{}");
+    p.put<uint64_t>(7);      // seed
+    p.put<uint64_t>(0xABCD); // scene hash
+    p.put<double>(0.5);      // bake seconds
+    p.put<uint64_t>(1);      // volume count
+    p.put<uint8_t>(0);       // layout: dense
+    p.putString(kOldName);
+    for (float f : {0.0f, 0.0f, 0.0f, 2.0f, 1.0f, 4.0f}) { // bounds min, max
+        p.put<float>(f);
+    }
+    for (uint32_t r : {1u, 1u, 1u}) {
+        p.put<uint32_t>(r);
+    }
+    p.put<uint8_t>(0);                                            // position mode: center
+    for (float f : {1.0f, 0.0f, 0.0f, 0.0f, 0.5f, 0.0f, -1.0f}) { // rotation wxyz, translation
+        p.put<float>(f);
+    }
+    p.put<uint8_t>(1);   // sh order L1
+    p.put<uint8_t>(0);   // storage float
+    p.put<int32_t>(-2);  // blend priority
+    p.put<float>(0.25f); // fade distance
+    p.put<uint64_t>(1);  // validity count
+    p.put<uint8_t>(1);   // valid
+    p.put<uint64_t>(12); // texel components: 3 planes x 1 probe x 4
+    for (int i = 0; i < 12; ++i) {
+        p.put<float>(float(i) - 5.5f);
+    }
+    return p.bytes;
+}
+
+// The version-1 encoding of `file` (none of whose volumes may have visibility), made from the
+// version-2 one by undoing exactly what version 2 added: version field 1 and each volume's
+// visibility flag (0) removed. Volume names must be distinctive (locateVolume).
+std::vector<uint8_t> versionOneBytes(const PvolFile& file) {
+    std::vector<uint8_t> bytes = encodePvol(file);
+    std::vector<size_t> flags;
+    for (const Volume& volume : file.volumes) {
+        EXPECT_FALSE(volume.hasVisibility()) << volume.desc.name;
+        const VolumeOffsets at = locateVolume(bytes, volume);
+        EXPECT_EQ(at.end, at.visibilityFlag + 1);
+        flags.push_back(at.visibilityFlag);
+    }
+    for (auto it = flags.rbegin(); it != flags.rend(); ++it) {
+        EXPECT_EQ(bytes[*it], 0);
+        bytes.erase(bytes.begin() + std::ptrdiff_t(*it));
+    }
+    storeAt<uint32_t>(bytes, kVersionOffset, 1);
+    resealPayload(bytes);
+    return bytes;
+}
+
+// Dense volumes (both placements, L1 and L2, float and half) and a bricked one, none with
+// visibility, as version 1 could hold them.
+PvolFile versionOneFile() {
+    PvolFile file;
+    file.metadata = testMetadata();
+    file.volumes.push_back(buildVolume({.name = "old_dense_SENTINEL_5d01",
+                                        .resolution = {2, 2, 2},
+                                        .mode = PositionMode::Corner,
+                                        .order = Order::L2,
+                                        .storage = Storage::Float32,
+                                        .seed = 31})
+                               .volume);
+    file.volumes.push_back(buildVolume({.name = "old_dense_SENTINEL_5d02",
+                                        .resolution = {4, 1, 2},
+                                        .order = Order::L1,
+                                        .storage = Storage::Float16,
+                                        .frame = tiltedFrame(),
+                                        .priority = 5,
+                                        .fade = 0.5f,
+                                        .seed = 32})
+                               .volume);
+    file.volumes.push_back(
+        buildVolume(brickedSpec("old_bricked_SENTINEL_5d03", Order::L2, Storage::Float16, 33))
+            .volume);
+    return file;
+}
+
+using PvolVersion1 = PvolReject;
+
+TEST_F(PvolVersion1, FileWithoutFlagsDecodesWithEmptyVisibility) {
+    const PvolFile file = versionOneFile();
+    const std::vector<uint8_t> v2 = encodePvol(file);
+    const std::vector<uint8_t> v1 = versionOneBytes(file);
+    ASSERT_EQ(v1.size(), v2.size() - 3);
+    ASSERT_EQ(loadAt<uint32_t>(v1, kVersionOffset), 1u);
+    const std::filesystem::path path = m_dir / "old.pvol";
+    writeBytes(path, v1);
+
+    auto check = [&](const Result<PvolFile>& got) {
+        ASSERT_TRUE(got.ok()) << got.error().message;
+        EXPECT_EQ(got.value().metadata, file.metadata);
+        ASSERT_EQ(got.value().volumes.size(), 3u);
+        for (size_t v = 0; v < 3; ++v) {
+            expectSameVolume(got.value().volumes[v], file.volumes[v]);
+            EXPECT_TRUE(got.value().volumes[v].visibility.empty());
+            EXPECT_EQ(got.value().volumes[v].visibilityGpuBytes(), 0u);
+        }
+        // What it decodes to is what the version-2 bytes hold: re-encoding gives them exactly.
+        EXPECT_EQ(encodePvol(got.value()), v2);
+    };
+    {
+        SCOPED_TRACE("decodePvol");
+        check(decode(v1));
+    }
+    {
+        SCOPED_TRACE("readPvol");
+        check(readPvol(path));
+    }
+}
+
+TEST_F(PvolVersion1, HandWrittenFileDecodes) {
+    const std::vector<uint8_t> v1 = withHeader(1, handWrittenVersionOnePayload());
+    const std::filesystem::path path = m_dir / "hand.pvol";
+    writeBytes(path, v1);
+    for (const bool from_file : {false, true}) {
+        SCOPED_TRACE(from_file ? "readPvol" : "decodePvol");
+        const auto got = from_file ? readPvol(path) : decode(v1);
+        ASSERT_TRUE(got.ok()) << got.error().message;
+        const BakeMetadata& meta = got.value().metadata;
+        EXPECT_EQ(meta.toolVersion, "probekit 0.0.1");
+        EXPECT_EQ(meta.method, "synthetic");
+        EXPECT_EQ(meta.parametersJson, "{}");
+        EXPECT_EQ(meta.seed, 7u);
+        EXPECT_EQ(meta.sceneHash, 0xABCDu);
+        EXPECT_EQ(meta.bakeSeconds, 0.5);
+        ASSERT_EQ(got.value().volumes.size(), 1u);
+        const Volume& v = got.value().volumes[0];
+        EXPECT_EQ(v.desc.name, kOldName);
+        EXPECT_EQ(v.desc.layout, VolumeLayout::Dense);
+        EXPECT_EQ(v.desc.grid.bounds().min, glm::vec3(0.0f));
+        EXPECT_EQ(v.desc.grid.bounds().max, glm::vec3(2.0f, 1.0f, 4.0f));
+        EXPECT_EQ(v.desc.grid.resolution(), glm::uvec3(1));
+        EXPECT_EQ(v.desc.grid.mode(), PositionMode::Center);
+        EXPECT_EQ(v.desc.grid.frame().rotation, glm::quat(1.0f, 0.0f, 0.0f, 0.0f));
+        EXPECT_EQ(v.desc.grid.frame().translation, glm::vec3(0.5f, 0.0f, -1.0f));
+        EXPECT_EQ(v.desc.shOrder, Order::L1);
+        EXPECT_EQ(v.desc.storage, Storage::Float32);
+        EXPECT_EQ(v.desc.blendPriority, -2);
+        EXPECT_EQ(v.desc.fadeDistance, 0.25f);
+        EXPECT_EQ(v.validity, std::vector<uint8_t>{1});
+        const std::vector<float> texels = {-5.5f, -4.5f, -3.5f, -2.5f, -1.5f, -0.5f,
+                                           0.5f,  1.5f,  2.5f,  3.5f,  4.5f,  5.5f};
+        EXPECT_EQ(v.texelsF32, texels);
+        EXPECT_TRUE(v.texelsF16.empty());
+        EXPECT_TRUE(v.visibility.empty());
+        EXPECT_TRUE(v.indirection.empty());
+
+        // The writer writes version 2: the same payload plus a 0 visibility flag at the end.
+        std::vector<uint8_t> payload = handWrittenVersionOnePayload();
+        payload.push_back(0);
+        EXPECT_EQ(encodePvol(got.value()), withHeader(2, payload));
+    }
+}
+
+TEST_F(PvolVersion1, VolumeCountIsBoundedByEachVersionsVolumeSize) {
+    // The smallest volume is 100 bytes in version 1 and 101 (the flag) in version 2.
+    std::vector<uint8_t> payload = handWrittenVersionOnePayload();
+    const size_t volume_count = 1 + 3 * 8 + 14 + 9 + 2 + 3 * 8;
+    ASSERT_EQ(loadAt<uint64_t>(payload, volume_count), 1u);
+    storeAt<uint64_t>(payload, volume_count, 1000);
+    expectRejected(withHeader(1, payload), ErrorCode::Truncated,
+                   "volume count 1000 needs at least 100 bytes each");
+    payload.push_back(0);
+    expectRejected(withHeader(2, payload), ErrorCode::Truncated,
+                   "volume count 1000 needs at least 101 bytes each");
 }
 
 // --- half storage ------------------------------------------------------------------------------
@@ -713,7 +997,30 @@ TEST_F(PvolReject, FutureVersion) {
     expectRejected(sample.bytes, ErrorCode::UnsupportedVersion,
                    "version " + std::to_string(kPvolVersion + 1));
     expectRejected(sample.bytes, ErrorCode::UnsupportedVersion,
-                   "this build reads version " + std::to_string(kPvolVersion));
+                   "this build reads versions 1 to " + std::to_string(kPvolVersion));
+    expectRejected(sample.bytes, ErrorCode::UnsupportedVersion,
+                   "format version 3 is not supported; this build reads versions 1 to 2");
+
+    storeAt<uint32_t>(sample.bytes, kVersionOffset, 0);
+    expectRejected(sample.bytes, ErrorCode::UnsupportedVersion,
+                   "format version 0 is not supported");
+}
+
+TEST_F(PvolReject, VersionOneHeaderOnAVersionTwoPayload) {
+    // Read as version 1, volume 0 ends before its visibility flag; the flag (0) becomes volume
+    // 1's layout (dense) and the next 8 bytes (volume 1's layout 0 and the first 7 bytes of its
+    // name length) its name length: 18 << 8. The version is outside the checksum.
+    SampleFile sample = sampleFile();
+    storeAt<uint32_t>(sample.bytes, kVersionOffset, 1);
+    expectRejected(sample.bytes, ErrorCode::Truncated,
+                   std::string(kSource) + ": volume 1: name length " +
+                       std::to_string(std::strlen(kTargetName) << 8));
+}
+
+TEST_F(PvolReject, VersionTwoHeaderOnAVersionOnePayload) {
+    // The hand-written version-1 file with its header saying 2: the flag is missing.
+    expectRejected(withHeader(2, handWrittenVersionOnePayload()), ErrorCode::Truncated,
+                   std::string(kSource) + ": volume 0 ('" + kOldName + "'): payload ends early");
 }
 
 TEST_F(PvolReject, UnexpectedHeaderSize) {
@@ -1007,6 +1314,86 @@ TEST_F(PvolReject, NonFiniteBakeSeconds) {
     storeAt<double>(sample.bytes, bake_seconds, std::numeric_limits<double>::quiet_NaN());
     resealPayload(sample.bytes);
     expectRejected(sample.bytes, ErrorCode::NonFinite, "metadata.bake_seconds");
+}
+
+// --- rejection: visibility ---------------------------------------------------------------------
+
+TEST_F(PvolReject, VisibilityFlagNotZeroOrOne) {
+    for (const uint8_t flag : {2, 7, 128, 255}) {
+        SCOPED_TRACE("flag " + std::to_string(flag));
+        const std::string fragment =
+            "visibility flag " + std::to_string(flag) + " is not 0 (none) or 1 (present)";
+        // On a volume with visibility (dense and bricked) and on one without.
+        SampleFile dense = sampleFile();
+        dense.bytes[dense.target.visibilityFlag] = flag;
+        resealPayload(dense.bytes);
+        expectRejected(dense.bytes, ErrorCode::BadEnum, targetLabel() + fragment);
+
+        SampleFile bricked = brickedSampleFile();
+        bricked.bytes[bricked.target.visibilityFlag] = flag;
+        resealPayload(bricked.bytes);
+        expectRejected(bricked.bytes, ErrorCode::BadEnum, brickedLabel() + fragment);
+
+        SampleFile first = sampleFile();
+        const VolumeOffsets at = locateVolume(first.bytes, first.file.volumes[0]);
+        ASSERT_EQ(first.bytes[at.visibilityFlag], 0);
+        first.bytes[at.visibilityFlag] = flag;
+        resealPayload(first.bytes);
+        expectRejected(first.bytes, ErrorCode::BadEnum,
+                       std::string(kSource) + ": volume 0 ('atrium_SENTINEL_04b1'): " + fragment);
+    }
+}
+
+TEST_F(PvolReject, VisibilityFlagClearedLeavesItsBytesUnread) {
+    // Flag 0 on the last volume: its 32 x 6 visibility bytes are left over after it.
+    SampleFile sample = sampleFile();
+    sample.bytes[sample.target.visibilityFlag] = 0;
+    resealPayload(sample.bytes);
+    expectRejected(sample.bytes, ErrorCode::TrailingBytes,
+                   std::string(kSource) + ": 192 unread payload bytes after the last volume");
+}
+
+TEST_F(PvolReject, TruncatedVisibilityAtEveryCutPoint) {
+    // Cuts at the flag and at every byte inside the block, with a valid checksum: the missing
+    // flag is cereal's end of data; a short block is refused before it is allocated.
+    for (const bool bricked : {false, true}) {
+        SCOPED_TRACE(bricked ? "bricked" : "dense");
+        const SampleFile sample = bricked ? brickedSampleFile() : sampleFile();
+        const std::string label = bricked ? brickedLabel() : targetLabel();
+        const size_t probes = sample.file.volumes[1].probeCount();
+        const size_t flag = sample.target.visibilityFlag;
+        ASSERT_EQ(sample.target.end, sample.bytes.size());
+        ASSERT_EQ(sample.bytes.size() - flag, 1 + 6 * probes);
+        for (size_t cut = flag; cut < sample.bytes.size(); ++cut) {
+            SCOPED_TRACE("cut at " + std::to_string(cut));
+            std::vector<uint8_t> head(sample.bytes.begin(), sample.bytes.begin() + cut);
+            resealPayload(head);
+            if (cut == flag) {
+                expectRejected(head, ErrorCode::Truncated, label + "payload ends early");
+            } else {
+                expectRejected(head, ErrorCode::Truncated,
+                               label + "visibility probe count " + std::to_string(probes) +
+                                   " (6 bytes each) needs more than the " +
+                                   std::to_string(cut - flag - 1) + " payload bytes that remain");
+            }
+        }
+    }
+}
+
+TEST_F(PvolReject, ChecksumGuardsTheVisibility) {
+    for (const bool bricked : {false, true}) {
+        SCOPED_TRACE(bricked ? "bricked" : "dense");
+        const SampleFile sample = bricked ? brickedSampleFile() : sampleFile();
+        const size_t block = sample.target.visibility;
+        const size_t block_bytes = sample.target.end - block;
+        for (const size_t offset :
+             {block - 1, block, block + block_bytes / 2, block + block_bytes - 1}) {
+            SCOPED_TRACE("byte " + std::to_string(offset));
+            std::vector<uint8_t> bytes = sample.bytes;
+            bytes[offset] ^= 0x01; // the flag (1 -> 0), or one visibility byte
+            expectRejected(bytes, ErrorCode::ChecksumMismatch, "checksum does not match");
+        }
+    }
 }
 
 // --- rejection: absurd counts (checked before anything is allocated) --------------------------

@@ -84,6 +84,9 @@ nlohmann::json describe(const PvolFile& file, const std::filesystem::path& path)
             {"invalid_probes", v.probeCount() - v.validCount()},
             {"texel_planes", v.planes()},
             {"texel_bytes", v.texelBytes()},
+            {"visibility", v.hasVisibility()},
+            {"visibility_bytes", v.visibility.size()},
+            {"visibility_gpu_bytes", v.visibilityGpuBytes()},
         };
         if (v.desc.layout == VolumeLayout::Bricked) {
             describeBricks(v, jv);
@@ -120,12 +123,15 @@ void printText(const nlohmann::json& j) {
             }
             std::printf("    bricks %zu (%s)\n", v["bricks"].get<size_t>(), per_level.c_str());
             const auto& cells = v["finest_cells"];
-            std::printf("    GPU bytes %zu (texels %zu + indirection %zu); dense at the finest "
+            const size_t visibility_gpu = v["visibility_gpu_bytes"].get<size_t>();
+            const std::string visibility_term =
+                visibility_gpu == 0 ? "" : " + visibility " + std::to_string(visibility_gpu);
+            std::printf("    GPU bytes %zu (texels %zu + indirection %zu%s); dense at the finest "
                         "level (%ux%ux%u cells) %zu bytes: ratio %.3f\n",
                         v["gpu_bytes"].get<size_t>(), v["texel_bytes"].get<size_t>(),
-                        v["indirection_bytes"].get<size_t>(), cells[0].get<unsigned>(),
-                        cells[1].get<unsigned>(), cells[2].get<unsigned>(),
-                        v["dense_equivalent_bytes"].get<size_t>(),
+                        v["indirection_bytes"].get<size_t>(), visibility_term.c_str(),
+                        cells[0].get<unsigned>(), cells[1].get<unsigned>(),
+                        cells[2].get<unsigned>(), v["dense_equivalent_bytes"].get<size_t>(),
                         v["gpu_to_dense_ratio"].get<double>());
         } else {
             std::printf("  volume '%s': %ux%ux%u %s probes, L%d, %s, %zu texel bytes\n",
@@ -144,6 +150,16 @@ void printText(const nlohmann::json& j) {
                     v["probes"].get<size_t>(), v["valid_probes"].get<size_t>(),
                     v["invalid_probes"].get<size_t>(), v["blend_priority"].get<int>(),
                     v["fade_distance"].get<double>());
+        if (v["visibility"].get<bool>()) {
+            const size_t probes = v["probes"].get<size_t>();
+            std::printf("    visibility: yes, %zu B/probe on disk (%zu bytes), %zu B/probe on GPU "
+                        "(%zu bytes)\n",
+                        visibility::kBytesPerProbe, v["visibility_bytes"].get<size_t>(),
+                        probes == 0 ? size_t(0) : v["visibility_gpu_bytes"].get<size_t>() / probes,
+                        v["visibility_gpu_bytes"].get<size_t>());
+        } else {
+            std::printf("    visibility: no\n");
+        }
     }
 }
 

@@ -2,7 +2,7 @@
 //
 // Byte layout (all integers little-endian):
 //   offset  0  magic         8 bytes  "PKVOL\r\n\x1a" (exactly these 8 bytes, no terminator)
-//   offset  8  version       u32      kPvolVersion
+//   offset  8  version       u32      kPvolVersion when written; 1 or 2 accepted on reading
 //   offset 12  header bytes  u32      32 (room to grow the header)
 //   offset 16  payload bytes u64      N
 //   offset 24  checksum      u64      xxHash64 (seed 0) of the N payload bytes
@@ -12,7 +12,16 @@
 // The payload holds the bake metadata, then a volume count, then per volume: a layout enum
 // (VolumeLayout: 0 dense, 1 bricked), the VolumeDesc fields, for bricked volumes the max level
 // and the brick list (brick.hpp; the indirection is derived on reading, not stored), then
-// validity bytes and texel planes (volume.hpp documents their packing).
+// validity bytes and texel planes (volume.hpp documents their packing), then the visibility
+// block (version 2 on).
+//
+// Versions: the writer always writes kPvolVersion (2). Version 2 adds, per volume after the
+// texel planes, a u8 visibility flag (0 = none, 1 = present) and, when 1, exactly
+// visibility::kBytesPerProbe (6) * probe count bytes, probe-major (visibility.hpp); nothing else
+// changed. The block has no byte count of its own: the probe count fixes its size, and a short
+// block is rejected as truncated before it is allocated. Version 1 files (kPvolOldestVersion),
+// which have no flag, still read, with empty visibility. Any other version is rejected
+// (UnsupportedVersion).
 //
 // Reading never trusts the bytes: every count is checked against the bytes that remain
 // before anything is allocated, every enum against its known values, every float field for
@@ -32,7 +41,8 @@
 
 namespace probekit {
 
-constexpr uint32_t kPvolVersion = 1;
+constexpr uint32_t kPvolVersion = 2;       // what encodePvol writes
+constexpr uint32_t kPvolOldestVersion = 1; // the oldest version decodePvol and readPvol accept
 constexpr size_t kPvolHeaderBytes = 32;
 
 // How a file was made. Free-form parameters are a JSON object as text, so every method can
