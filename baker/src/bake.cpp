@@ -478,6 +478,8 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
             bs.tracer = tracer.value().get();
             bs.nudge = config.nudge;
             bs.backfaceThreshold = config.backfaceThreshold;
+            bs.visibility = config.visibility;
+            bs.threads = result.stats.threads;
             Result<BrickedOutcome> bricked = bakeBricked(scene, desc, desc.shOrder, bs, bake_batch);
             if (!bricked) {
                 return bricked.error();
@@ -494,13 +496,10 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
             result.stats.invalidProbes += b.invalidProbes;
             result.stats.nudgedProbes += b.nudgedProbes;
             result.warnings.insert(result.warnings.end(), b.warnings.begin(), b.warnings.end());
-            std::vector<uint8_t> vis;
-            if (config.visibility) {
-                vis = traceVolumeVisibility(*tracer.value(), b.desc, b.validity,
-                                            result.stats.threads);
+            if (!b.visibility.empty()) {
                 rays.fetch_add(kVisibilityRaysPerProbe * b.desc.probeCount());
             }
-            Result<Volume> volume = makeVolume(b.desc, b.probes, b.validity, vis);
+            Result<Volume> volume = makeVolume(b.desc, b.probes, b.validity, b.visibility);
             if (!volume) {
                 return volume.error();
             }

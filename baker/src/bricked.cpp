@@ -11,6 +11,7 @@
 #include "probekit/formats/brick.hpp"
 #include "ray_tracer.hpp"
 #include "sampling.hpp"
+#include "visibility.hpp"
 
 namespace probekit::baker {
 namespace {
@@ -518,10 +519,11 @@ private:
 } // namespace
 
 uint64_t brickedGpuBytes(glm::uvec3 top_bricks, uint32_t max_level, uint64_t bricks,
-                         sh::Order order, Storage storage) {
+                         sh::Order order, Storage storage, bool visibility) {
     const glm::uvec3 cells = brick::finestCells(top_bricks, max_level);
     return bricks * kBrickProbeCount * planeCount(order) * 4 * bytesPerComponent(storage) +
-           uint64_t(cells.x) * cells.y * cells.z * sizeof(uint32_t);
+           uint64_t(cells.x) * cells.y * cells.z * sizeof(uint32_t) +
+           (visibility ? bricks * kBrickProbeCount * 8 : 0);
 }
 
 Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, sh::Order order,
@@ -714,7 +716,7 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
     };
     auto bytes = [&] {
         const uint64_t stored = stored_at[0] + stored_at[1] + stored_at[2] + stored_at[3];
-        return brickedGpuBytes(top, deepest(), stored, order, desc.storage);
+        return brickedGpuBytes(top, deepest(), stored, order, desc.storage, settings.visibility);
     };
     if (bytes() > settings.budgetBytes) {
         using Entry = std::pair<double, int>;
@@ -836,7 +838,11 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
     if (!indirection) {
         return indirection.error();
     }
-    brick::stitchBorders(top, out.desc.bricks, indirection.value(), out.probes);
+    if (settings.visibility && settings.tracer != nullptr) {
+        out.visibility =
+            traceVolumeVisibility(*settings.tracer, out.desc, out.validity, settings.threads);
+    }
+    brick::stitchBorders(top, out.desc.bricks, indirection.value(), out.probes, out.visibility);
     return out;
 }
 

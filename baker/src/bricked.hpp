@@ -34,12 +34,17 @@ struct BrickedSettings {
     // again just inside the box instead of being dilated (see bricked.cpp, Lattice::nudge).
     bool nudge = true;
     float backfaceThreshold = 0.25f; // BakeConfig::backfaceThreshold
+    // BakeConfig::visibility: trace the probes' visibility (visibility.hpp; needs `tracer`),
+    // stitch with it and count its GPU bytes in the budget.
+    bool visibility = false;
+    uint32_t threads = 1; // for the visibility tracing
 };
 
 struct BrickedOutcome {
     VolumeDesc desc; // with desc.bricks filled in
     std::vector<sh::ShRgb> probes;
     std::vector<uint8_t> validity;
+    std::vector<uint8_t> visibility; // empty unless BrickedSettings::visibility
     uint64_t bricksPerLevel[4] = {0, 0, 0, 0};
     uint64_t refineCandidates = 0;
     uint64_t budgetDropped = 0;
@@ -78,8 +83,9 @@ struct BrickedOutcome {
 Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, sh::Order order,
                                    const BrickedSettings& settings, const ProbeBatchFn& bake_batch);
 
-// GPU bytes of a bricked layout: texels of `bricks` bricks plus the u32 indirection.
+// GPU bytes of a bricked layout: texels of `bricks` bricks plus the u32 indirection, plus with
+// visibility its 8 bytes per probe (Volume::visibilityGpuBytes).
 uint64_t brickedGpuBytes(glm::uvec3 top_bricks, uint32_t max_level, uint64_t bricks,
-                         sh::Order order, Storage storage);
+                         sh::Order order, Storage storage, bool visibility = false);
 
 } // namespace probekit::baker

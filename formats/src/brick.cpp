@@ -8,6 +8,8 @@
 
 #include <glm/common.hpp>
 
+#include "probekit/formats/visibility.hpp"
+
 namespace probekit::brick {
 
 namespace {
@@ -113,33 +115,46 @@ BrickSample locate(glm::uvec3 top_bricks, const BrickLayout& layout,
     return sample;
 }
 
-sh::ShRgb interpolate(std::span<const sh::ShRgb> brick_probes, glm::vec3 local) {
+sh::ShRgb interpolate(std::span<const sh::ShRgb> brick_probes, glm::vec3 local,
+                      std::span<const uint8_t> brick_visibility) {
     uint32_t first[3];
     float t[3];
+    glm::vec3 g;
     for (int a = 0; a < 3; ++a) {
-        const float g = std::clamp(local[a], 0.0f, float(kBrickCells));
-        first[a] = std::min(uint32_t(g), kBrickCells - 1);
-        t[a] = g - float(first[a]);
+        g[a] = std::clamp(local[a], 0.0f, float(kBrickCells));
+        first[a] = std::min(uint32_t(g[a]), kBrickCells - 1);
+        t[a] = g[a] - float(first[a]);
     }
+    const bool visible_weights = !brick_visibility.empty();
     sh::ShRgb out;
+    float weight_sum = 0.0f;
     for (uint32_t k = 0; k < 8; ++k) {
         const uint32_t dx = k & 1, dy = (k >> 1) & 1, dz = k >> 2;
-        const float w =
-            (dx ? t[0] : 1.0f - t[0]) * (dy ? t[1] : 1.0f - t[1]) * (dz ? t[2] : 1.0f - t[2]);
+        float w = (dx ? t[0] : 1.0f - t[0]) * (dy ? t[1] : 1.0f - t[1]) * (dz ? t[2] : 1.0f - t[2]);
         if (w == 0.0f) {
             continue;
         }
-        const uint32_t index =
-            (first[0] + dx) + kBrickSize * ((first[1] + dy) + kBrickSize * (first[2] + dz));
+        const glm::uvec3 tap(first[0] + dx, first[1] + dy, first[2] + dz);
+        const uint32_t index = tap.x + kBrickSize * (tap.y + kBrickSize * tap.z);
+        if (visible_weights) {
+            w *= visibility::probeVisibility(&brick_visibility[visibility::kBytesPerProbe * index],
+                                             g - glm::vec3(tap)) +
+                 visibility::kFloor;
+            weight_sum += w;
+        }
         sh::ShRgb term = brick_probes[index];
         term *= w;
         out += term;
+    }
+    if (visible_weights) {
+        out *= 1.0f / weight_sum;
     }
     return out;
 }
 
 void stitchBorders(glm::uvec3 top_bricks, const BrickLayout& layout,
-                   std::span<const uint32_t> indirection, std::span<sh::ShRgb> probes) {
+                   std::span<const uint32_t> indirection, std::span<sh::ShRgb> probes,
+                   std::span<const uint8_t> visibility) {
     const glm::uvec3 cells = finestCells(top_bricks, layout.maxLevel);
     assert(indirection.size() == size_t(cells.x) * cells.y * cells.z);
     assert(probes.size() == layout.bricks.size() * kBrickProbeCount);
@@ -216,8 +231,12 @@ void stitchBorders(glm::uvec3 top_bricks, const BrickLayout& layout,
             const uint32_t step = 1u << (layout.maxLevel - from.level);
             const glm::vec3 from_local =
                 (glm::vec3(lattice) - glm::vec3(from.coord * (kBrickCells * step))) / float(step);
+            constexpr size_t kBrickVisibility = kBrickProbeCount * visibility::kBytesPerProbe;
             probes[size_t(self) * kBrickProbeCount + k] = interpolate(
-                probes.subspan(size_t(source) * kBrickProbeCount, kBrickProbeCount), from_local);
+                probes.subspan(size_t(source) * kBrickProbeCount, kBrickProbeCount), from_local,
+                visibility.empty()
+                    ? visibility
+                    : visibility.subspan(source * kBrickVisibility, kBrickVisibility));
         }
     }
 }

