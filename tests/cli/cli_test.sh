@@ -64,6 +64,31 @@ expect 1 "badlevels.json: volumes\[0\].levels" -- "$pk" bake cornell.gltf -o x.p
     --config badlevels.json
 check "a failed bake leaves no output" test ! -e x.pvol
 
+# Leak-proof interpolation: the thin-wall scene with a probe plane just on the lit side of the
+# wall (x = -0.0625). Dark-side points 0.3 m from the wall: without visibility the lit probes
+# are interpolated through the wall; with it (the default) the dark side stays dark.
+expect 0 "wrote thin-wall.gltf" -- "$pk" scene thin-wall -o thin-wall.gltf
+cat >wall.json <<'JSON'
+{"path": {"samples": 64}, "volumes": [{"bounds": {"mode": "custom",
+  "min": [-1.8125, 0, -2], "max": [2.1875, 2.5, 2]}, "resolution": [8, 8, 8]}]}
+JSON
+expect 0 "wrote wall.pvol" -- "$pk" bake thin-wall.gltf -o wall.pvol --config wall.json
+expect 0 "wrote wall-plain.pvol" -- "$pk" bake thin-wall.gltf -o wall-plain.pvol \
+    --config wall.json --no-visibility
+expect 0 "visibility: yes" -- "$pk" info wall.pvol
+expect 0 "visibility: no" -- "$pk" info wall-plain.pvol
+printf 'x,y,z,nx,ny,nz\n0.325,1.2,-0.9,0,1,0\n0.325,0.6,-0.3,-1,0,0\n' >dark.csv
+"$pk" sample wall.pvol --points dark.csv -o dark-vis.csv >/dev/null 2>&1
+"$pk" sample wall-plain.pvol --points dark.csv -o dark-plain.csv >/dev/null 2>&1
+# The plain volume must leak at least 3x more light onto the dark side at both points.
+check "visibility keeps the dark side dark" awk -F, 'NR == FNR && FNR > 1 { v[FNR] = $7 + $8 + $9 }
+    NR != FNR && FNR > 1 { if (!($7 + $8 + $9 > 3 * v[FNR])) bad = 1 } END { exit bad }' \
+    dark-vis.csv dark-plain.csv
+echo '{"validity": {"visibility": 1}}' >badvis.json
+expect 1 "badvis.json: validity.visibility" -- "$pk" bake cornell.gltf -o x2.pvol \
+    --config badvis.json
+check "no output after a bad visibility setting" test ! -e x2.pvol
+
 # Bad input: each names the file or field, exits 1, and leaves no output file.
 expect 1 "missing.gltf" -- "$pk" bake missing.gltf -o out1.pvol
 check "no output after a failed bake" test ! -e out1.pvol
