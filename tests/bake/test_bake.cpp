@@ -271,7 +271,8 @@ TEST(BakeDeterminism, BitIdenticalForOneAndTwoThreads) {
     Result<BakeResult> a = bake(scene, c, one);
     Result<BakeResult> b = bake(scene, c, two);
     ASSERT_TRUE(a.ok() && b.ok());
-    // Timing differs run to run; everything else must not.
+    // Timing differs run to run; everything else must not (visibility included: on by default).
+    ASSERT_TRUE(a.value().file.volumes[0].hasVisibility());
     a.value().file.metadata.bakeSeconds = b.value().file.metadata.bakeSeconds = 0;
     EXPECT_EQ(encodePvol(a.value().file), encodePvol(b.value().file));
     c.seed = 7;
