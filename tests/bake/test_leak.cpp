@@ -10,8 +10,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <string>
 #include <vector>
 
+#include <glm/gtc/quaternion.hpp>
 #include <gtest/gtest.h>
 
 #include "bake_test_support.hpp"
@@ -48,7 +50,7 @@ std::vector<glm::vec3> darkPoints(float half_thickness) {
 // A scene made here, not bundled: two 3 m high, 4 m x 4 m rooms split by a 2 cm wall with a
 // doorway (z 1.2..2, below 2 m), a 40 W/sr point light in the -x room (as in the issue's
 // measurement on a scene the project had not seen). Closed boxes, albedo 0.6.
-baker::Scene twoCentimetreWall() {
+baker::Scene twoCentimetreWall(float wall_angle_deg = 0.0f) {
     baker::Scene scene;
     baker::Material wall;
     wall.baseColor = glm::vec3(0.6f);
@@ -75,8 +77,16 @@ baker::Scene twoCentimetreWall() {
     box({4.0f, 0.0f, -2.0f}, {4.1f, h, 2.0f});
     box({-4.0f, 0.0f, -2.1f}, {4.0f, h, -2.0f});
     box({-4.0f, 0.0f, 2.0f}, {4.0f, h, 2.1f});
-    box({-t, 0.0f, -2.0f}, {t, h, 1.2f});
-    box({-t, 2.0f, 1.2f}, {t, h, 2.0f});
+    // The dividing wall, turned about the vertical axis through the origin by wall_angle_deg
+    // (its ends then reach into the side walls).
+    const size_t first_wall_vertex = scene.positions.size();
+    const float reach = wall_angle_deg == 0.0f ? 0.0f : 0.5f;
+    box({-t, 0.0f, -2.0f - reach}, {t, h, 1.2f});
+    box({-t, 2.0f, 1.2f}, {t, h, 2.0f + reach});
+    const glm::quat turn = glm::angleAxis(glm::radians(wall_angle_deg), glm::vec3(0, 1, 0));
+    for (size_t i = first_wall_vertex; i < scene.positions.size(); ++i) {
+        scene.positions[i] = turn * scene.positions[i];
+    }
     scene.triangleMaterial.assign(scene.triangles.size(), 0);
     scene.triangleNode.assign(scene.triangles.size(), -1);
     scene.bounds = {glm::vec3(-4.1f, -0.1f, -2.1f), glm::vec3(4.1f, h + 0.1f, 2.1f)};
@@ -102,10 +112,15 @@ const baker::Scene& thinnerWall() {
     return scene;
 }
 
-Reference darkReference(const baker::Scene& scene, float half_thickness) {
+Reference darkReference(const baker::Scene& scene, float half_thickness,
+                        float wall_angle_deg = 0.0f) {
     {
         Reference r;
         r.points = darkPoints(half_thickness);
+        const glm::quat turn = glm::angleAxis(glm::radians(wall_angle_deg), glm::vec3(0, 1, 0));
+        for (glm::vec3& p : r.points) {
+            p = turn * p;
+        }
         baker::BakeConfig config;
         Result<baker::PointBake> pb =
             baker::bakePoints(scene, config, r.points, kReferenceSamples, 0);
@@ -169,6 +184,7 @@ struct SweepScene {
     const baker::Scene* scene;
     float height;        // room height, m
     float halfThickness; // of the dividing wall, m
+    float wallAngleDeg = 0.0f;
 };
 
 Volume bakeSweep(const SweepScene& sc, Kind kind, int k, bool visibility) {
@@ -196,7 +212,7 @@ Volume restored(const Volume& v, sh::Order order, Storage storage) {
 }
 
 void sweep(Kind kind, const char* label, const SweepScene& sc) {
-    const Reference ref = darkReference(*sc.scene, sc.halfThickness);
+    const Reference ref = darkReference(*sc.scene, sc.halfThickness, sc.wallAngleDeg);
     std::printf("[leak %s] offset (cm):", label);
     for (int k = 0; k < kOffsets; ++k) {
         std::printf(" %6.2f", double(k * kStep * 100.0f));
@@ -251,6 +267,17 @@ TEST(LeakSweep, DenseCornerStaysWithinBound) {
 
 TEST(LeakSweep, BrickedStaysWithinBound) {
     sweep(Kind::Bricked, "bricked", bundled());
+}
+
+// The 2 cm wall turned 20 and 45 degrees about the vertical: the box of free space around a
+// probe (one distance per half-axis) still hides the probes behind an oblique wall from points
+// 0.25 m or more beyond it.
+TEST(LeakSweep, ObliqueWallsStayWithinBound) {
+    for (const float angle : {20.0f, 45.0f}) {
+        const baker::Scene scene = twoCentimetreWall(angle);
+        const std::string label = "2 cm wall at " + std::to_string(int(angle)) + " deg";
+        sweep(Kind::DenseCenter, label.c_str(), SweepScene{&scene, 3.0f, 0.01f, angle});
+    }
 }
 
 // The configuration on a scene built here: 2 cm wall, 3 m rooms, 40 W/sr.
