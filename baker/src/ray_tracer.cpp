@@ -16,7 +16,7 @@ namespace probekit::baker {
 
 namespace {
 
-// Every Embree error of the device lands here (STYLE.md: one callback, no check after each
+// Every Embree error of the device lands here (ARCHITECTURE.md: one callback, no check after each
 // call). create() turns what was collected into its Result.
 void onDeviceError(void* user, RTCError code, const char* message) {
     auto* log = static_cast<RayTracer::ErrorLog*>(user);

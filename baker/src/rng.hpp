@@ -1,7 +1,7 @@
 // probekit::baker — counter-based random numbers for the bakers.
 //
-// Determinism is the point (STYLE.md, "Deterministic output"): every random number a bake uses
-// is a pure function of (seed, volume index, probe index, sample index) and the order of draws
+// Determinism is the point (ARCHITECTURE.md, "Output is deterministic"): every random number a bake
+// uses is a pure function of (seed, volume index, probe index, sample index) and the order of draws
 // within one sample, never of the clock, the thread or the order in which probes are visited.
 // So the same input gives a bit-identical volume whatever the thread count.
 //
