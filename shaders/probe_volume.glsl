@@ -13,6 +13,22 @@
 //    bindings (layout in probe_volume_layout.h, shared with C++) and pk_irradiance(worldPos,
 //    normal), the GPU twin of probekit::runtime::VolumeSet::irradiance. Usable in any stage
 //    (it samples with explicit LOD 0).
+//
+// Visibility (leak-proof interpolation, sampler.hpp step V): volumes flagged
+// PK_VOLUME_FLAG_VISIBILITY are interpolated tap by tap with visibility weights
+// (pk_visible_texels) instead of by the hardware filter. The specialization constant
+// pk_visibility_mode (id PK_CONSTANT_VISIBILITY; modes in probe_volume_layout.h) chooses how:
+//  * PK_VISIBILITY_BRANCH (default, right for any set): a uniform branch per volume, tap by tap
+//    with visibility, hardware-filtered without;
+//  * PK_VISIBILITY_OFF: the visibility path compiled out, exactly the hardware-filtered code,
+//    for pipelines that only sample sets without visibility (GpuVolumeSet::anyVisibility);
+//  * PK_VISIBILITY_TAPS: every volume tap by tap (without visibility at weight 1: trilinear
+//    interpolation), no hardware-filtered fetch at all.
+// Implementations that execute both sides of every branch, uniform ones included (lavapipe in
+// Mesa 22: all eight slot cases of pk_fetch_planes run, masked), pay for code they skip: for
+// them OFF keeps sets without visibility at their old cost and TAPS saves the filtered fetches
+// a BRANCH pipeline would run (masked) beside the taps. The renderer picks OFF, or TAPS on CPU
+// devices and BRANCH on others.
 #ifndef PROBEKIT_PROBE_VOLUME_GLSL
 #define PROBEKIT_PROBE_VOLUME_GLSL
 
@@ -75,9 +91,12 @@ layout(set = PK_VOLUME_SET, binding = PK_BINDING_STATE_A) uniform texture3D
 layout(set = PK_VOLUME_SET, binding = PK_BINDING_STATE_B) uniform texture3D
     pk_state_b[PK_MAX_VOLUMES * PK_MAX_PLANES];
 layout(set = PK_VOLUME_SET, binding = PK_BINDING_SAMPLER) uniform sampler pk_linear_clamp;
-// Bricked volumes' indirection (probe_volume_layout.h), element = slot.
+// The slots' integer images (probe_volume_layout.h), element = slot: bricked volumes'
+// indirection and the visibility of volumes that have it (PK_BINDING_VISIBILITY is this binding).
 layout(set = PK_VOLUME_SET, binding = PK_BINDING_INDIRECTION) uniform utexture3D
     pk_indirection[PK_MAX_VOLUMES];
+// How volumes with visibility are sampled (see the top of this file).
+layout(constant_id = PK_CONSTANT_VISIBILITY) const uint pk_visibility_mode = PK_VISIBILITY_BRANCH;
 
 // Slot of the i-th volume in blending order (descending priority, ties in set order).
 uint pk_blend_slot(uint i) {
@@ -119,7 +138,7 @@ float pk_distance_to_volume(uint s, vec3 local) {
 }
 
 #if PK_MAX_VOLUMES != 8
-#error "pk_fetch_planes and pk_indirection_entry have one case per slot: update them"
+#error "pk_fetch_planes, pk_accumulate_tap and the integer-image fetches have one case per slot"
 #endif
 
 bool pk_is_bricked(uint s) {
@@ -151,11 +170,10 @@ vec3 pk_atlas_uvw(uint s, uint index, vec3 l) {
     return (vec3(slot * PK_BRICK_SIZE) + 0.5 + l) / vec3(a * PK_BRICK_SIZE);
 }
 
-// Texture coordinate of the bricked steps B1-B3 of the sampler.hpp specification
-// (runtime::sampleVolumeSh's sampleBrickedSh and brick::locate, term for term): the point in
-// finest-cell units, its cell's brick from the indirection, brick-local coordinates, then the
-// brick's atlas slot; the hardware filter does B3's trilinear interpolation.
-vec3 pk_brick_uvw(uint s, vec3 local) {
+// The bricked steps B1-B2 of the sampler.hpp specification (runtime::sampleVolumeSh's
+// withTaps and brick::locate, term for term): the point in finest-cell units, its cell's brick
+// from the indirection, and the brick-local coordinates l in [0, 3].
+void pk_brick_locate(uint s, vec3 local, out uint index, out vec3 l) {
     const uvec3 cells = pk_volume_set.volumes[s].resolution.xyz;
     const vec3 box_min = pk_volume_set.volumes[s].boxMin.xyz;
     const vec3 box_max = pk_volume_set.volumes[s].boxMax.xyz;
@@ -167,8 +185,17 @@ vec3 pk_brick_uvw(uint s, vec3 local) {
     const uint level = entry & 3u;
     const uint span = 1u << (pk_volume_set.volumes[s].bricks.w - level);
     const uvec3 origin = (c / span) * span;
-    const vec3 l = clamp((f - vec3(origin)) * (3.0 / float(span)), vec3(0.0), vec3(3.0));
-    return pk_atlas_uvw(s, entry >> 2u, l);
+    index = entry >> 2u;
+    l = clamp((f - vec3(origin)) * (3.0 / float(span)), vec3(0.0), vec3(3.0));
+}
+
+// Texture coordinate of the bricked steps B1-B3: pk_brick_locate, then the brick's atlas slot;
+// the hardware filter does B3's trilinear interpolation.
+vec3 pk_brick_uvw(uint s, vec3 local) {
+    uint index;
+    vec3 l;
+    pk_brick_locate(s, local, index, l);
+    return pk_atlas_uvw(s, index, l);
 }
 
 // Texture coordinate of steps 1-3 of the sampler.hpp specification: grid coordinates
@@ -185,6 +212,193 @@ vec3 pk_volume_uvw(uint s, vec3 local) {
     g = mix(g, vec3(0.0), isnan(g));
     g = clamp(g, vec3(0.0), res - 1.0);
     return (g + 0.5) / res;
+}
+
+// ---- Visibility (sampler.hpp step V; probe_volume_layout.h's "Visibility") ----
+
+bool pk_has_visibility(uint s) {
+    return pk_visibility_mode != PK_VISIBILITY_OFF &&
+           (pk_volume_set.volumes[s].resolution.w & PK_VOLUME_FLAG_VISIBILITY) != 0u;
+}
+
+// The visibility texel at integer-image texel c of slot s: x = q0..q3, y = q4, q5 (one case per
+// slot: constant indices).
+uvec2 pk_visibility_texel(uint s, ivec3 c) {
+    switch (s) {
+    case 0: return texelFetch(pk_indirection[0], c, 0).xy;
+    case 1: return texelFetch(pk_indirection[1], c, 0).xy;
+    case 2: return texelFetch(pk_indirection[2], c, 0).xy;
+    case 3: return texelFetch(pk_indirection[3], c, 0).xy;
+    case 4: return texelFetch(pk_indirection[4], c, 0).xy;
+    case 5: return texelFetch(pk_indirection[5], c, 0).xy;
+    case 6: return texelFetch(pk_indirection[6], c, 0).xy;
+    default: return texelFetch(pk_indirection[7], c, 0).xy;
+    }
+}
+
+// vis_i of one probe (its visibility texel q) at grid offset o. Mirrors
+// visibility::probeVisibility (formats/.../visibility.hpp) term for term: per axis a, side
+// (o_a > 0 ? 0 : 1), d_a = q[2 a + side] / 255 (decodeDistance), and the minimum over the axes
+// of clamp(1 - (|o_a| - d_a) / kRamp, 0, 1). The CPU skips an axis with o_a = 0; here it gives
+// 1 + d_a / kRamp >= 1, clamped to 1, which leaves the minimum as it is: the same value.
+float pk_probe_visibility(uvec2 q, vec3 o) {
+    // Byte h = 2 a + side of the six: x holds h = 0..3, y h = 4, 5 (lowest byte first).
+    const uint qx = (q.x >> (o.x > 0.0 ? 0u : 8u)) & 255u;
+    const uint qy = (q.x >> (o.y > 0.0 ? 16u : 24u)) & 255u;
+    const uint qz = (q.y >> (o.z > 0.0 ? 0u : 8u)) & 255u;
+    const vec3 d = vec3(uvec3(qx, qy, qz)) * (1.0 / 255.0);
+    const vec3 v = clamp(1.0 - (abs(o) - d) / PK_VISIBILITY_RAMP, vec3(0.0), vec3(1.0));
+    return min(1.0, min(v.x, min(v.y, v.z)));
+}
+
+// The (up to) 8 taps of one volume at a local position: runtime's withTaps and axisTaps (the
+// dense coordinate is pk_volume_uvw's g, the bricked one pk_brick_locate's l).
+struct PkTaps {
+    vec3 coord;       // the clamped coordinate: dense g in [0, res - 1], bricked l in [0, 3]
+    uvec3 lower;      // probes floor(coord) ...
+    uvec3 upper;      // ... and floor(coord) + 1; on an axis at its last probe the lower one
+                      // again, with weight fract(coord) = 0 (axisTaps' one-tap axis)
+    ivec3 texel;      // texel of the probe (0, 0, 0) in the planes: 0, or the brick's slot * 4
+    ivec3 visibility; // its texel in the integer image: 0, or slot * 4 + (0, 0, C.z)
+};
+
+PkTaps pk_volume_taps(uint s, vec3 local) {
+    PkTaps taps;
+    uvec3 last;
+    if (pk_is_bricked(s)) {
+        uint index;
+        pk_brick_locate(s, local, index, taps.coord);
+        last = uvec3(PK_BRICK_SIZE - 1u);
+        const uvec3 a = pk_volume_set.volumes[s].bricks.xyz;
+        const uvec3 slot = uvec3(index % a.x, (index / a.x) % a.y, index / (a.x * a.y));
+        taps.texel = ivec3(slot * PK_BRICK_SIZE);
+        taps.visibility = taps.texel + ivec3(0, 0, int(pk_volume_set.volumes[s].resolution.z));
+    } else {
+        const vec4 spacing = pk_volume_set.volumes[s].spacing;
+        const uvec3 res = pk_volume_set.volumes[s].resolution.xyz;
+        vec3 g = (local - pk_volume_set.volumes[s].boxMin.xyz) / spacing.xyz - spacing.w;
+        g = mix(g, vec3(0.0), isnan(g));
+        taps.coord = clamp(g, vec3(0.0), vec3(res) - 1.0);
+        last = res - 1u;
+        taps.texel = ivec3(0);
+        taps.visibility = ivec3(0);
+    }
+    taps.lower = uvec3(taps.coord); // floor: coord >= 0
+    taps.upper = min(taps.lower + 1u, last);
+    return taps;
+}
+
+// Tap k (0..7, x fastest as the CPU's loops): its probe, its per-axis weights (the CPU's
+// tx.weight[i], ty.weight[j], tz.weight[k]: 1 - fract, fract) and its visibility offset (the
+// clamped coordinate minus the probe's).
+void pk_tap(PkTaps taps, uint k, out uvec3 probe, out vec3 axis_weights, out vec3 offset) {
+    const bvec3 up = notEqual(uvec3(k, k >> 1u, k >> 2u) & 1u, uvec3(0u));
+    probe = mix(taps.lower, taps.upper, up);
+    const vec3 t = taps.coord - vec3(taps.lower);
+    axis_weights = mix(1.0 - t, t, up);
+    offset = taps.coord - vec3(probe);
+}
+
+#define PK_TAP_L1(STATE, S, C, W, A)                                                           \
+    A[0] += W * texelFetch(STATE[(S)*PK_MAX_PLANES + 0], C, 0);                                \
+    A[1] += W * texelFetch(STATE[(S)*PK_MAX_PLANES + 1], C, 0);                                \
+    A[2] += W * texelFetch(STATE[(S)*PK_MAX_PLANES + 2], C, 0);
+#define PK_TAP_L2(STATE, S, C, W, A)                                                           \
+    A[3] += W * texelFetch(STATE[(S)*PK_MAX_PLANES + 3], C, 0);                                \
+    A[4] += W * texelFetch(STATE[(S)*PK_MAX_PLANES + 4], C, 0);                                \
+    A[5] += W * texelFetch(STATE[(S)*PK_MAX_PLANES + 5], C, 0);                                \
+    A[6] += W * texelFetch(STATE[(S)*PK_MAX_PLANES + 6], C, 0);
+#define PK_TAP_SLOT(S)                                                                         \
+    case S:                                                                                    \
+        PK_TAP_L1(pk_state_a, S, c, w, a)                                                      \
+        if (l2) {                                                                              \
+            PK_TAP_L2(pk_state_a, S, c, w, a)                                                  \
+        }                                                                                      \
+        if (blend) {                                                                           \
+            PK_TAP_L1(pk_state_b, S, c, w, b)                                                  \
+            if (l2) {                                                                          \
+                PK_TAP_L2(pk_state_b, S, c, w, b)                                              \
+            }                                                                                  \
+        }                                                                                      \
+        break;
+
+// One tap of interpolateTexels' loop: w times the stored texels of every plane at texel c
+// (texelFetch: the texel alone, decoded to float as Volume::texel does), added to a (state a)
+// and b (state b). One case per slot, so every array index is a constant.
+void pk_accumulate_tap(uint s, ivec3 c, float w, bool l2, bool blend, inout vec4 a[PK_MAX_PLANES],
+                       inout vec4 b[PK_MAX_PLANES]) {
+    switch (s) {
+        PK_TAP_SLOT(0)
+        PK_TAP_SLOT(1)
+        PK_TAP_SLOT(2)
+        PK_TAP_SLOT(3)
+        PK_TAP_SLOT(4)
+        PK_TAP_SLOT(5)
+        PK_TAP_SLOT(6)
+        PK_TAP_SLOT(7)
+    }
+}
+
+// Step 3 (B3) with visibility, step V: runtime's interpolateTexels with visible_weights, term
+// for term: each tap's trilinear weight times (vis + kFloor), the weighted texels summed and
+// divided by the sum of the weights. Both states take the primary's visibility weights, and
+// a (1 - f) + b f mixes them as pk_fetch_planes does. Planes a volume does not have are zero.
+// A volume without visibility (PK_VISIBILITY_TAPS) weighs each tap by its trilinear weight
+// alone: step 3 itself, normalised by a weight sum that is 1 to within rounding.
+void pk_visible_texels(uint s, PkTaps taps, out vec4 t[PK_MAX_PLANES]) {
+    const uint flags = pk_volume_set.volumes[s].resolution.w;
+    const bool l2 = (flags & PK_VOLUME_FLAG_L2) != 0u;
+    const bool blend = (flags & PK_VOLUME_FLAG_BLEND) != 0u;
+    const bool visible = pk_has_visibility(s);
+    const vec4 zero = vec4(0.0);
+    vec4 a[PK_MAX_PLANES] = vec4[PK_MAX_PLANES](zero, zero, zero, zero, zero, zero, zero);
+    vec4 b[PK_MAX_PLANES] = a;
+    float weight_sum = 0.0;
+    for (uint k = 0u; k < 8u; ++k) {
+        uvec3 probe;
+        vec3 axis;
+        vec3 offset;
+        pk_tap(taps, k, probe, axis, offset);
+        // The CPU's tx.weight[i] * wyz, wyz = ty.weight[j] * tz.weight[k], times vis + kFloor.
+        // Without visibility the fetch reads texel 0, which every integer image (or the dummy
+        // bound in its place) has, and is not used.
+        const uvec2 q =
+            pk_visibility_texel(s, visible ? taps.visibility + ivec3(probe) : ivec3(0));
+        float w = axis.x * (axis.y * axis.z);
+        w *= visible ? pk_probe_visibility(q, offset) + PK_VISIBILITY_FLOOR : 1.0;
+        weight_sum += w;
+        pk_accumulate_tap(s, taps.texel + ivec3(probe), w, l2, blend, a, b);
+    }
+    const float f = blend ? pk_volume_set.volumes[s].boxMax.w : 0.0;
+    t[0] = a[0] / weight_sum * (1.0 - f) + b[0] / weight_sum * f;
+    t[1] = a[1] / weight_sum * (1.0 - f) + b[1] / weight_sum * f;
+    t[2] = a[2] / weight_sum * (1.0 - f) + b[2] / weight_sum * f;
+    t[3] = a[3] / weight_sum * (1.0 - f) + b[3] / weight_sum * f;
+    t[4] = a[4] / weight_sum * (1.0 - f) + b[4] / weight_sum * f;
+    t[5] = a[5] / weight_sum * (1.0 - f) + b[5] / weight_sum * f;
+    t[6] = a[6] / weight_sum * (1.0 - f) + b[6] / weight_sum * f;
+}
+
+// The visible share of the trilinear weight of one volume at a local position, sum
+// trilinear_i * vis_i in [0, 1]: runtime::visibleWeight (visibleShare) term for term; 1 for a
+// volume without visibility.
+float pk_volume_visible_weight(uint s, vec3 local) {
+    if (!pk_has_visibility(s)) {
+        return 1.0;
+    }
+    const PkTaps taps = pk_volume_taps(s, local);
+    float share = 0.0;
+    for (uint k = 0u; k < 8u; ++k) {
+        uvec3 probe;
+        vec3 axis;
+        vec3 offset;
+        pk_tap(taps, k, probe, axis, offset);
+        // The CPU's tx.weight[i] * ty.weight[j] * tz.weight[k] * vis, left to right.
+        share += axis.x * axis.y * axis.z *
+                 pk_probe_visibility(pk_visibility_texel(s, taps.visibility + ivec3(probe)),
+                                     offset);
+    }
+    return share;
 }
 
 #define PK_FETCH_L1(STATE, S, UVW, T)                                                          \
@@ -244,11 +458,24 @@ void pk_fetch_planes(uint s, vec3 uvw, out vec4 t[PK_MAX_PLANES]) {
     }
 }
 
+// The interpolated texels of one volume at a local position: steps 1-3 (B1-B3) of
+// runtime::sampleVolumeSh. Without visibility the hardware filter at pk_volume_uvw; with it
+// (step V) the taps one by one, pk_visible_texels (and in PK_VISIBILITY_TAPS mode every volume
+// so).
+void pk_volume_texels(uint s, vec3 local, out vec4 t[PK_MAX_PLANES]) {
+    if (pk_visibility_mode == PK_VISIBILITY_TAPS ||
+        (pk_visibility_mode == PK_VISIBILITY_BRANCH && pk_has_visibility(s))) {
+        pk_visible_texels(s, pk_volume_taps(s, local), t);
+    } else {
+        pk_fetch_planes(s, pk_volume_uvw(s, local), t);
+    }
+}
+
 // Irradiance of one volume at a local position. Mirrors
 // sh::irradiance(runtime::sampleVolumeSh(volume, p), order, n).
 vec3 pk_volume_irradiance(uint s, vec3 local, vec3 n) {
     vec4 t[PK_MAX_PLANES];
-    pk_fetch_planes(s, pk_volume_uvw(s, local), t);
+    pk_volume_texels(s, local, t);
     vec3 sh[9];
     pk_unpack_probe(t, (pk_volume_set.volumes[s].resolution.w & PK_VOLUME_FLAG_L2) != 0u, sh);
     return pk_sh_irradiance(sh, n);
@@ -350,12 +577,40 @@ vec4 pk_fetch_only(vec3 world_position, vec3 normal) {
         const float a = w * remaining;
         if (a > 0.0) {
             vec4 t[PK_MAX_PLANES];
-            pk_fetch_planes(s, pk_volume_uvw(s, local), t);
+            pk_volume_texels(s, local, t);
             sum += t[0] + t[1] + t[2] + t[3] + t[4] + t[5] + t[6];
             remaining -= a;
         }
     }
     return sum;
+}
+
+// The visible share of the trilinear weight at world position p (the leak view,
+// `probekit render --view leak`): pk_volume_visible_weight (runtime::visibleWeight) blended
+// over the volumes with pk_irradiance's shares, sum a_v share_v / sum a_v, at the same sample
+// point (normal offset) and with the same nearest-volume rule outside every box. 1 where no
+// tap is hidden, near 0 where plain trilinear interpolation would pull light through a wall.
+float pk_visible_weight(vec3 world_position, vec3 normal) {
+    const vec3 p = world_position + pk_volume_set.params.x * normal;
+    bool covered;
+    uint nearest;
+    pk_coverage(p, covered, nearest);
+    const uint count = pk_volume_set.header.x;
+    float weighted_sum = 0.0;
+    float weight_sum = 0.0;
+    float remaining = 1.0;
+    for (uint i = 0u; i < count; ++i) {
+        const uint s = pk_blend_slot(i);
+        const vec3 local = pk_to_local(s, p);
+        const float w = covered ? pk_volume_weight(s, local) : (s == nearest ? 1.0 : 0.0);
+        const float a = w * remaining;
+        if (a > 0.0) {
+            weighted_sum += a * pk_volume_visible_weight(s, local);
+            weight_sum += a;
+            remaining -= a;
+        }
+    }
+    return weighted_sum / weight_sum;
 }
 
 #endif // PK_VOLUME_SET

@@ -28,6 +28,7 @@ using uvec4 = glm::uvec4;
 #define PK_VIEW_IRRADIANCE 1u // E, W/m^2
 #define PK_VIEW_PROBES 2u     // surfaces shaded, probe spheres lit by their own SH
 #define PK_VIEW_VALIDITY 3u   // probe spheres only: valid ones lit by their SH, invalid ones red
+#define PK_VIEW_LEAK 4u       // visible share v of the trilinear weight: rgb (1, v, v)
 
 // PkLightGpu.info.x.
 #define PK_LIGHT_POINT 0u

@@ -1,10 +1,11 @@
 #version 450
 // Shading pass: per pixel, pk_irradiance at the G-buffer position and normal, then the view's
 // output (render_layout.h). Compiled three times: as is (shaded and irradiance views), with
-// PK_PROBE_VIEWS (also shades probe spheres by their own SH: the probes and validity views),
-// and with PK_FETCH_ONLY (the benchmark floor: pk_irradiance's texture fetches alone). Keeping
-// the sphere path out of the common variant matters on SIMD CPUs such as lavapipe, which run
-// both sides of a divergent branch, texture fetches included.
+// PK_PROBE_VIEWS (the debug views: also shades probe spheres by their own SH for the probes and
+// validity views, and the leak view's visible share), and with PK_FETCH_ONLY (the benchmark
+// floor: pk_irradiance's texture fetches alone). Keeping the debug paths out of the common
+// variant matters on SIMD CPUs such as lavapipe, which run both sides of a divergent branch,
+// texture fetches included (and, in Mesa 22, of uniform branches too).
 #extension GL_GOOGLE_include_directive : require
 #define PK_VOLUME_SET 0
 #include "probe_volume.glsl"
@@ -96,6 +97,13 @@ void main() {
             // A white Lambertian sphere lit by the probe's own SH: radiance E / pi.
             color = pk_probe_irradiance(slot, probe, n) / PK_PI;
         }
+    } else
+#endif
+#ifdef PK_PROBE_VIEWS
+    if (view == PK_VIEW_LEAK) {
+        // White (v = 1) to red (v = 0): renderer.hpp's RenderView::Leak.
+        const float v = pk_visible_weight(position, n);
+        color = vec3(1.0, v, v);
     } else
 #endif
     {

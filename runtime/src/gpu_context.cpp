@@ -33,15 +33,22 @@ constexpr FormatNeed kFormatNeeds[] = {
          VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BIT | VK_FORMAT_FEATURE_STORAGE_IMAGE_BIT,
      "RGBA32F (linear-filtered volumes, G-buffer, output)"},
     {VK_FORMAT_R32_UINT,
-     VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BIT | VK_FORMAT_FEATURE_STORAGE_IMAGE_BIT,
-     "R32_UINT (G-buffer ids)"},
+     VK_FORMAT_FEATURE_SAMPLED_IMAGE_BIT | VK_FORMAT_FEATURE_TRANSFER_DST_BIT |
+         VK_FORMAT_FEATURE_COLOR_ATTACHMENT_BIT | VK_FORMAT_FEATURE_STORAGE_IMAGE_BIT,
+     "R32_UINT (brick indirection, G-buffer ids)"},
+    {VK_FORMAT_R32G32_UINT,
+     VK_FORMAT_FEATURE_SAMPLED_IMAGE_BIT | VK_FORMAT_FEATURE_TRANSFER_DST_BIT,
+     "RG32_UINT (visibility)"},
     {VK_FORMAT_D32_SFLOAT, VK_FORMAT_FEATURE_DEPTH_STENCIL_ATTACHMENT_BIT, "D32 depth"},
 };
 
-// Sampled images one shader stage reads through a volume set (both states of every slot).
-constexpr uint32_t kSampledImagesPerSet = 2 * PK_MAX_VOLUMES * PK_MAX_PLANES;
-// The renderer's shading stage adds a sampler, two uniform buffers and six storage images.
-constexpr uint32_t kResourcesPerStage = kSampledImagesPerSet + 9;
+// Sampled images one shader stage reads through a volume set (both states of every slot and
+// the integer images: indirection and visibility).
+constexpr uint32_t kSampledImagesPerSet = PK_SAMPLED_IMAGES;
+// Resources (maxPerStageResources counts every descriptor but samplers) of the renderer's
+// shading stage: the set's images and uniform buffer, its own uniform buffer and six storage
+// images.
+constexpr uint32_t kResourcesPerStage = kSampledImagesPerSet + 1 + 7;
 
 bool hasLayer(const char* name) {
     uint32_t count = 0;
@@ -102,7 +109,8 @@ DeviceInfo describe(VkPhysicalDevice device) {
             return info;
         }
     }
-    for (VkFormat format : {VK_FORMAT_R16G16B16A16_SFLOAT, VK_FORMAT_R32G32B32A32_SFLOAT}) {
+    for (VkFormat format : {VK_FORMAT_R16G16B16A16_SFLOAT, VK_FORMAT_R32G32B32A32_SFLOAT,
+                            VK_FORMAT_R32_UINT, VK_FORMAT_R32G32_UINT}) {
         VkImageFormatProperties image;
         if (vkGetPhysicalDeviceImageFormatProperties(
                 device, format, VK_IMAGE_TYPE_3D, VK_IMAGE_TILING_OPTIMAL,

@@ -21,6 +21,14 @@ using detail::Image;
 namespace {
 
 constexpr uint32_t kPlaneElements = PK_MAX_VOLUMES * PK_MAX_PLANES;
+// The shader's visibility constants are the CPU sampler's.
+static_assert(float(PK_VISIBILITY_RAMP) == visibility::kRamp);
+static_assert(float(PK_VISIBILITY_FLOOR) == visibility::kFloor);
+static_assert(kVisibilityTexelBytes >= visibility::kBytesPerProbe);
+// The integer images: the indirection alone, or the indirection and visibility (bricked) or
+// the visibility alone (dense) in 32-bit components.
+constexpr VkFormat kIndirectionFormat = VK_FORMAT_R32_UINT;
+constexpr VkFormat kVisibilityFormat = VK_FORMAT_R32G32_UINT;
 // Shader reads of the set may happen in any stage the application uses.
 constexpr VkPipelineStageFlags kAnyStage = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT;
 
@@ -146,7 +154,8 @@ glm::uvec3 brickAtlasSlot(uint32_t index, glm::uvec3 atlas_slots) {
             index / (atlas_slots.x * atlas_slots.y)};
 }
 
-gpu::PkVolumeGpu packVolumeGpu(const VolumeDesc& desc, float blend, glm::uvec3 atlas_slots) {
+gpu::PkVolumeGpu packVolumeGpu(const VolumeDesc& desc, float blend, glm::uvec3 atlas_slots,
+                               bool visibility) {
     const grid::GridLayout& layout = desc.grid;
     // Columns of R^T; row i of R^T is (m[0][i], m[1][i], m[2][i]).
     const glm::mat3 m = glm::mat3_cast(glm::conjugate(layout.frame().rotation));
@@ -164,6 +173,9 @@ gpu::PkVolumeGpu packVolumeGpu(const VolumeDesc& desc, float blend, glm::uvec3 a
     if (blend > 0.0f) {
         flags |= PK_VOLUME_FLAG_BLEND;
     }
+    if (visibility) {
+        flags |= PK_VOLUME_FLAG_VISIBILITY;
+    }
     if (isBricked(desc)) {
         flags |= PK_VOLUME_FLAG_BRICKED;
         v.resolution =
@@ -179,9 +191,11 @@ gpu::PkVolumeGpu packVolumeGpu(const VolumeDesc& desc, float blend, glm::uvec3 a
 
 gpu::PkVolumeSetGpu packVolumeSetGpu(std::span<const VolumeDesc> descs,
                                      std::span<const float> blends, float normal_offset,
-                                     std::span<const glm::uvec3> atlas_slots) {
+                                     std::span<const glm::uvec3> atlas_slots,
+                                     std::span<const uint8_t> visibility) {
     assert(!descs.empty() && descs.size() <= kMaxGpuVolumes && blends.size() == descs.size());
     assert(atlas_slots.empty() || atlas_slots.size() == descs.size());
+    assert(visibility.empty() || visibility.size() == descs.size());
     gpu::PkVolumeSetGpu set{};
     set.header = glm::uvec4(uint32_t(descs.size()), 0u, 0u, 0u);
     set.params = glm::vec4(normal_offset, 0.0f, 0.0f, 0.0f);
@@ -191,7 +205,8 @@ gpu::PkVolumeSetGpu packVolumeSetGpu(std::span<const VolumeDesc> descs,
     }
     for (size_t i = 0; i < descs.size(); ++i) {
         set.volumes[i] = packVolumeGpu(descs[i], blends[i],
-                                       atlas_slots.empty() ? glm::uvec3(0u) : atlas_slots[i]);
+                                       atlas_slots.empty() ? glm::uvec3(0u) : atlas_slots[i],
+                                       !visibility.empty() && visibility[i] != 0);
     }
     return set;
 }
@@ -226,6 +241,37 @@ void packTexelBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count,
     }
 }
 
+size_t visibilityBoxBytes(glm::uvec3 count) {
+    return size_t(count.x) * count.y * count.z * kVisibilityTexelBytes;
+}
+
+void packVisibilityBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count,
+                       std::span<uint8_t> bytes) {
+    const grid::GridLayout& layout = volume.desc.grid;
+    assert(!isBricked(volume.desc) && volume.hasVisibility());
+    assert(glm::all(glm::greaterThanEqual(count, glm::uvec3(1u))));
+    assert(glm::all(glm::lessThanEqual(first + count, layout.resolution())));
+    assert(bytes.size() == visibilityBoxBytes(count));
+    uint8_t* out = bytes.data();
+    for (uint32_t z = first.z; z < first.z + count.z; ++z) {
+        for (uint32_t y = first.y; y < first.y + count.y; ++y) {
+            for (uint32_t x = first.x; x < first.x + count.x; ++x) {
+                const size_t probe = layout.linearIndex(glm::uvec3(x, y, z));
+                std::memcpy(out, &volume.visibility[probe * visibility::kBytesPerProbe],
+                            visibility::kBytesPerProbe);
+                std::memset(out + visibility::kBytesPerProbe, 0,
+                            kVisibilityTexelBytes - visibility::kBytesPerProbe);
+                out += kVisibilityTexelBytes;
+            }
+        }
+    }
+}
+
+glm::uvec3 brickedIntegerExtent(glm::uvec3 cells, glm::uvec3 atlas_slots) {
+    const glm::uvec3 atlas = atlas_slots * PK_BRICK_SIZE;
+    return {std::max(cells.x, atlas.x), std::max(cells.y, atlas.y), cells.z + atlas.z};
+}
+
 Result<VkDescriptorSetLayout> createVolumeSetLayout(const GpuContext& context) {
     std::array<VkDescriptorSetLayoutBinding, 5> bindings{};
     bindings[0] = {PK_BINDING_VOLUMES, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_ALL,
@@ -254,12 +300,16 @@ struct StateImages {
 struct Slot {
     VolumeDesc desc;
     std::vector<uint8_t> validity;
+    bool visibility = false; // the primary state brought visibility data
     StateImages states[2];
     float blend = 0.0f;
-    // Bricked only: the atlas shape (brickAtlasSlots) and the indirection image, shared by both
-    // states (a second state has the primary's layout).
+    // Bricked only: the atlas shape (brickAtlasSlots), shared by both states (a second state
+    // has the primary's layout).
     glm::uvec3 atlasSlots{0u};
-    Image indirection;
+    // The slot's integer image (PK_BINDING_INDIRECTION element, probe_volume_layout.h): bricked,
+    // the indirection (R32_UINT) or the indirection and visibility (RG32_UINT); dense, the
+    // visibility (RG32_UINT) or nothing (the dummy is bound).
+    Image integer;
 };
 
 // Extent of one texel-plane image: the grid (dense) or the brick atlas (bricked).
@@ -276,7 +326,7 @@ struct GpuVolumeSet::Impl {
     VkDescriptorSet set = VK_NULL_HANDLE;
     VkSampler sampler = VK_NULL_HANDLE;
     Image dummy;            // bound to every element no plane uses
-    Image dummyIndirection; // bound to every indirection element no bricked volume uses
+    Image dummyIndirection; // bound to every integer-image element no volume uses
     Buffer uniforms;
     Buffer staging; // reused and grown across uploads
     std::vector<Slot> slots;
@@ -288,8 +338,12 @@ struct GpuVolumeSet::Impl {
     VkDevice device() const { return context->device(); }
     gpu::PkVolumeSetGpu packUniforms() const;
     Result<void> allocateState(const Slot& slot, StateImages& state);
-    // The images of a slot's primary state (and, bricked, its atlas shape and indirection).
+    // The images of a slot's primary state (and, bricked, its atlas shape) and its integer
+    // image.
     Result<void> allocateLayout(Slot& slot);
+    // The slot's integer image for its desc, atlas shape and visibility (none for a dense slot
+    // without visibility).
+    Result<void> allocateIntegerImage(Slot& slot);
     void releaseImages(Slot& slot);
     Result<void> initDummy();
     Result<void> writeDescriptors();
@@ -331,13 +385,15 @@ gpu::PkVolumeSetGpu GpuVolumeSet::Impl::packUniforms() const {
     std::vector<VolumeDesc> descs;
     std::vector<float> blends;
     std::vector<glm::uvec3> atlas_slots;
+    std::vector<uint8_t> visibility;
     for (const Slot& slot : slots) {
         descs.push_back(slot.desc);
         // A second state counts once it holds data (an upload that failed leaves none).
         blends.push_back(slot.states[1].initialised ? slot.blend : 0.0f);
         atlas_slots.push_back(slot.atlasSlots);
+        visibility.push_back(slot.visibility && slot.integer.view != VK_NULL_HANDLE ? 1 : 0);
     }
-    return packVolumeSetGpu(descs, blends, normalOffset, atlas_slots);
+    return packVolumeSetGpu(descs, blends, normalOffset, atlas_slots, visibility);
 }
 
 Result<void> GpuVolumeSet::Impl::allocateState(const Slot& slot, StateImages& state) {
@@ -358,6 +414,24 @@ Result<void> GpuVolumeSet::Impl::allocateState(const Slot& slot, StateImages& st
 Result<void> GpuVolumeSet::Impl::allocateLayout(Slot& slot) {
     if (isBricked(slot.desc)) {
         const uint32_t max_dimension = context->limits().maxImageDimension3D;
+        Result<glm::uvec3> atlas = brickAtlasSlots(slot.desc.bricks.bricks.size(), max_dimension);
+        if (!atlas) {
+            return atlas.error();
+        }
+        slot.atlasSlots = atlas.value();
+    } else {
+        slot.atlasSlots = glm::uvec3(0u);
+    }
+    PK_TRY(allocateIntegerImage(slot));
+    return allocateState(slot, slot.states[0]);
+}
+
+Result<void> GpuVolumeSet::Impl::allocateIntegerImage(Slot& slot) {
+    detail::destroy(device(), slot.integer);
+    glm::uvec3 extent;
+    VkFormat format = kVisibilityFormat;
+    if (isBricked(slot.desc)) {
+        const uint32_t max_dimension = context->limits().maxImageDimension3D;
         const glm::uvec3 cells =
             brick::finestCells(slot.desc.grid.resolution(), slot.desc.bricks.maxLevel);
         if (glm::any(glm::greaterThan(cells, glm::uvec3(max_dimension)))) {
@@ -366,23 +440,31 @@ Result<void> GpuVolumeSet::Impl::allocateLayout(Slot& slot) {
                                  " finest cells exceeds the device's maxImageDimension3D " +
                                  std::to_string(max_dimension));
         }
-        Result<glm::uvec3> atlas = brickAtlasSlots(slot.desc.bricks.bricks.size(), max_dimension);
-        if (!atlas) {
-            return atlas.error();
+        extent = cells;
+        format = kIndirectionFormat;
+        if (slot.visibility) {
+            extent = brickedIntegerExtent(cells, slot.atlasSlots);
+            format = kVisibilityFormat;
+            if (glm::any(glm::greaterThan(extent, glm::uvec3(max_dimension)))) {
+                return makeError(ErrorCode::OutOfRange,
+                                 "indirection and visibility atlas (" + extentText(extent) +
+                                     " texels) exceed the device's maxImageDimension3D " +
+                                     std::to_string(max_dimension));
+            }
         }
-        slot.atlasSlots = atlas.value();
-        Result<Image> image = detail::createImage(
-            *context, VK_IMAGE_TYPE_3D, VK_FORMAT_R32_UINT, {cells.x, cells.y, cells.z},
-            VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
-            VK_IMAGE_ASPECT_COLOR_BIT);
-        if (!image) {
-            return image.error();
-        }
-        slot.indirection = image.value();
+    } else if (slot.visibility) {
+        extent = slot.desc.grid.resolution();
     } else {
-        slot.atlasSlots = glm::uvec3(0u);
+        return {};
     }
-    return allocateState(slot, slot.states[0]);
+    Result<Image> image = detail::createImage(
+        *context, VK_IMAGE_TYPE_3D, format, {extent.x, extent.y, extent.z},
+        VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT);
+    if (!image) {
+        return image.error();
+    }
+    slot.integer = image.value();
+    return {};
 }
 
 void GpuVolumeSet::Impl::releaseImages(Slot& slot) {
@@ -392,7 +474,7 @@ void GpuVolumeSet::Impl::releaseImages(Slot& slot) {
         }
         state = StateImages{};
     }
-    detail::destroy(device(), slot.indirection);
+    detail::destroy(device(), slot.integer);
 }
 
 namespace {
@@ -459,9 +541,8 @@ Result<void> GpuVolumeSet::Impl::writeDescriptors() {
     }
     std::array<VkDescriptorImageInfo, PK_MAX_VOLUMES> indirections{};
     for (uint32_t s = 0; s < PK_MAX_VOLUMES; ++s) {
-        const bool bricked = s < slots.size() && slots[s].indirection.view != VK_NULL_HANDLE;
-        indirections[s] = {VK_NULL_HANDLE,
-                           bricked ? slots[s].indirection.view : dummyIndirection.view,
+        const bool used = s < slots.size() && slots[s].integer.view != VK_NULL_HANDLE;
+        indirections[s] = {VK_NULL_HANDLE, used ? slots[s].integer.view : dummyIndirection.view,
                            VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
     }
     const VkDescriptorBufferInfo buffer{uniforms.buffer, 0, sizeof(gpu::PkVolumeSetGpu)};
@@ -524,12 +605,21 @@ Result<void> GpuVolumeSet::Impl::upload(size_t index, VolumeState which, const V
     const bool whole = first == glm::uvec3(0u) && count == slot.desc.grid.resolution();
     assert(state.initialised || whole);
 
-    const size_t bytes = texelBoxBytes(source, count);
+    const size_t texel_bytes = texelBoxBytes(source, count);
+    // The primary state brings the box's visibility too (the slot's integer image).
+    const bool visible = which == VolumeState::Primary && slot.visibility;
+    assert(!visible || source.hasVisibility());
+    const size_t visibility_bytes = visible ? visibilityBoxBytes(count) : 0;
+    const size_t bytes = texel_bytes + visibility_bytes;
     PK_TRY(ensureStaging(bytes));
     // The previous upload waited for its copy, so the staging memory is free to overwrite.
-    packTexelBox(source, first, count, {static_cast<uint8_t*>(staging.mapped), bytes});
+    auto* out = static_cast<uint8_t*>(staging.mapped);
+    packTexelBox(source, first, count, {out, texel_bytes});
+    if (visible) {
+        packVisibilityBox(source, first, count, {out + texel_bytes, visibility_bytes});
+    }
 
-    const size_t plane_bytes = bytes / source.planes();
+    const size_t plane_bytes = texel_bytes / source.planes();
     // A whole replacement discards the old texels (UNDEFINED); a box keeps the rest of them.
     const VkImageLayout old_layout =
         whole ? VK_IMAGE_LAYOUT_UNDEFINED : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
@@ -545,6 +635,15 @@ Result<void> GpuVolumeSet::Impl::upload(size_t index, VolumeState which, const V
             region.imageOffset = {int32_t(first.x), int32_t(first.y), int32_t(first.z)};
             region.imageExtent = {count.x, count.y, count.z};
             finishImageUpload(cmd, staging.buffer, image.image, std::span(&region, 1));
+        }
+        if (visible) {
+            beginImageUpload(cmd, slot.integer.image, old_layout);
+            VkBufferImageCopy region{};
+            region.bufferOffset = texel_bytes;
+            region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+            region.imageOffset = {int32_t(first.x), int32_t(first.y), int32_t(first.z)};
+            region.imageExtent = {count.x, count.y, count.z};
+            finishImageUpload(cmd, staging.buffer, slot.integer.image, std::span(&region, 1));
         }
         // A replaced primary state may bring a new box, frame, fade or priority.
         if (dirty) {
@@ -577,8 +676,14 @@ Result<void> GpuVolumeSet::Impl::uploadBricked(size_t index, VolumeState which,
     // The stored planes are already brick after brick, each brick's 64 texels a 4 x 4 x 4 box
     // (x fastest): they are staged as they are, one copy region per brick.
     const size_t texel_bytes = source.texelBytes();
-    const size_t indirection_bytes = primary ? source.indirection.size() * sizeof(uint32_t) : 0;
-    const size_t bytes = texel_bytes + indirection_bytes;
+    // The primary state brings the indirection and, with visibility, the visibility atlas,
+    // both in the slot's integer image: entries of 4 bytes (R32_UINT) or 8 (RG32_UINT, y = 0).
+    const bool visible = primary && slot.visibility;
+    assert(!visible || source.hasVisibility());
+    const size_t entry_bytes = visible ? kVisibilityTexelBytes : sizeof(uint32_t);
+    const size_t indirection_bytes = primary ? source.indirection.size() * entry_bytes : 0;
+    const size_t visibility_bytes = visible ? source.probeCount() * kVisibilityTexelBytes : 0;
+    const size_t bytes = texel_bytes + indirection_bytes + visibility_bytes;
     PK_TRY(ensureStaging(bytes));
     auto* out = static_cast<uint8_t*>(staging.mapped);
     std::memcpy(out,
@@ -588,10 +693,25 @@ Result<void> GpuVolumeSet::Impl::uploadBricked(size_t index, VolumeState which,
                 texel_bytes);
     if (primary) {
         const std::vector<brick::Brick>& bricks = source.desc.bricks.bricks;
+        const size_t stride = entry_bytes / sizeof(uint32_t);
         auto* entries = reinterpret_cast<uint32_t*>(out + texel_bytes);
         for (size_t c = 0; c < source.indirection.size(); ++c) {
             const uint32_t b = source.indirection[c];
-            entries[c] = PK_BRICK_ENTRY(b, uint32_t(bricks[b].level));
+            entries[c * stride] = PK_BRICK_ENTRY(b, uint32_t(bricks[b].level));
+            if (stride == 2) {
+                entries[c * stride + 1] = 0;
+            }
+        }
+    }
+    if (visible) {
+        // Probe by probe in stored order: each brick's 64 probes are a 4 x 4 x 4 box (x fastest).
+        uint8_t* texel = out + texel_bytes + indirection_bytes;
+        for (size_t probe = 0; probe < source.probeCount(); ++probe) {
+            std::memcpy(texel, &source.visibility[probe * visibility::kBytesPerProbe],
+                        visibility::kBytesPerProbe);
+            std::memset(texel + visibility::kBytesPerProbe, 0,
+                        kVisibilityTexelBytes - visibility::kBytesPerProbe);
+            texel += kVisibilityTexelBytes;
         }
     }
 
@@ -627,13 +747,40 @@ Result<void> GpuVolumeSet::Impl::uploadBricked(size_t index, VolumeState which,
             finishImageUpload(cmd, staging.buffer, image.image, regions);
         }
         if (primary) {
-            const Image& image = slot.indirection;
+            const Image& image = slot.integer;
+            const glm::uvec3 cells =
+                brick::finestCells(source.desc.grid.resolution(), source.desc.bricks.maxLevel);
             beginImageUpload(cmd, image.image, VK_IMAGE_LAYOUT_UNDEFINED);
-            VkBufferImageCopy region{};
-            region.bufferOffset = texel_bytes;
-            region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
-            region.imageExtent = image.extent;
-            finishImageUpload(cmd, staging.buffer, image.image, std::span(&region, 1));
+            if (visible) {
+                // Texels outside both regions are never read; cleared for determinism.
+                vkCmdClearColorImage(cmd, image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &zero,
+                                     1, &range);
+                detail::imageBarrier(cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT,
+                                     VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                                     VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                                     VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+                                     VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
+            }
+            std::vector<VkBufferImageCopy> integer_regions(1 + (visible ? brick_count : 0));
+            VkBufferImageCopy& indirection_region = integer_regions[0];
+            indirection_region = {};
+            indirection_region.bufferOffset = texel_bytes;
+            indirection_region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+            indirection_region.imageExtent = {cells.x, cells.y, cells.z};
+            for (size_t b = 0; visible && b < brick_count; ++b) {
+                // The visibility atlas sits above the indirection: z offset C.z.
+                const glm::uvec3 origin =
+                    brickAtlasSlot(uint32_t(b), slot.atlasSlots) * PK_BRICK_SIZE +
+                    glm::uvec3(0u, 0u, cells.z);
+                VkBufferImageCopy& region = integer_regions[1 + b];
+                region = {};
+                region.bufferOffset = texel_bytes + indirection_bytes +
+                                      b * brick::kBrickProbeCount * kVisibilityTexelBytes;
+                region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+                region.imageOffset = {int32_t(origin.x), int32_t(origin.y), int32_t(origin.z)};
+                region.imageExtent = {PK_BRICK_SIZE, PK_BRICK_SIZE, PK_BRICK_SIZE};
+            }
+            finishImageUpload(cmd, staging.buffer, image.image, integer_regions);
         }
         if (dirty) {
             recordUniforms(cmd);
@@ -717,6 +864,7 @@ Result<GpuVolumeSet> GpuVolumeSet::create(GpuContext& context, std::span<const V
         Slot slot;
         slot.desc = volumes[i].desc;
         slot.validity = volumes[i].validity;
+        slot.visibility = volumes[i].hasVisibility();
         impl->slots.push_back(std::move(slot));
         if (Result<void> allocated = impl->allocateLayout(impl->slots.back()); !allocated) {
             return makeError(allocated.error().code,
@@ -744,6 +892,16 @@ const std::vector<uint8_t>& GpuVolumeSet::validity(size_t index) const {
     return m_impl->slots[index].validity;
 }
 
+bool GpuVolumeSet::hasVisibility(size_t index) const {
+    assert(index < size());
+    return m_impl->slots[index].visibility;
+}
+
+bool GpuVolumeSet::anyVisibility() const {
+    return std::any_of(m_impl->slots.begin(), m_impl->slots.end(),
+                       [](const Slot& slot) { return slot.visibility; });
+}
+
 bool GpuVolumeSet::hasSecondState(size_t index) const {
     assert(index < size());
     return m_impl->slots[index].states[1].initialised;
@@ -765,8 +923,10 @@ size_t GpuVolumeSet::texelBytes() const {
         const size_t one = size_t(planeCount(slot.desc.shOrder)) * e.width * e.height * e.depth *
                            texelSize(slot.desc.storage);
         bytes += slot.states[1].allocated ? 2 * one : one;
-        const VkExtent3D cells = slot.indirection.extent;
-        bytes += size_t(cells.width) * cells.height * cells.depth * sizeof(uint32_t);
+        const VkExtent3D e_int = slot.integer.extent;
+        const size_t texel =
+            slot.integer.format == kVisibilityFormat ? kVisibilityTexelBytes : sizeof(uint32_t);
+        bytes += size_t(e_int.width) * e_int.height * e_int.depth * texel;
     }
     return bytes;
 }
@@ -809,6 +969,7 @@ Result<void> GpuVolumeSet::replaceVolume(size_t index, const Volume& volume, Vol
         m_impl->releaseImages(slot);
         slot.desc = volume.desc;
         slot.validity = volume.validity;
+        slot.visibility = volume.hasVisibility();
         m_impl->dirty = true;
         Result<void> allocated = m_impl->allocateLayout(slot);
         // Dead views must leave the set even when the allocation failed (dummies take over).
@@ -835,6 +996,18 @@ Result<void> GpuVolumeSet::replaceVolume(size_t index, const Volume& volume, Vol
         slot.desc = volume.desc;
         slot.validity = volume.validity;
         m_impl->dirty = true;
+        if (slot.visibility != volume.hasVisibility()) {
+            // Visibility switched on or off: a new integer image (for a bricked volume it holds
+            // the indirection too, in the other format), bound once work in flight is done.
+            PK_TRY(m_impl->context->waitIdle());
+            slot.visibility = volume.hasVisibility();
+            Result<void> allocated = m_impl->allocateIntegerImage(slot);
+            PK_TRY(m_impl->writeDescriptors());
+            if (!allocated) {
+                slot.visibility = false;
+                return makeError(allocated.error().code, where + ": " + allocated.error().message);
+            }
+        }
     }
     return m_impl->uploadWhole(index, state, volume);
 }
@@ -870,6 +1043,13 @@ Result<void> GpuVolumeSet::updateBox(size_t index, const Volume& source, glm::uv
     if (!slot.states[size_t(state)].initialised) {
         return makeError(ErrorCode::InvalidArgument,
                          where + ": no second state to update (upload one with replaceVolume)");
+    }
+    if (state == VolumeState::Primary && source.hasVisibility() != slot.visibility) {
+        return makeError(ErrorCode::InvalidArgument,
+                         where + (slot.visibility
+                                      ? ": box source has no visibility data and the volume has"
+                                      : ": box source has visibility data and the volume has "
+                                        "none (replace the volume to switch it on)"));
     }
     if (state == VolumeState::Primary) {
         for (uint32_t z = first.z; z < first.z + count.z; ++z) {

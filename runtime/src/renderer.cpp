@@ -41,7 +41,8 @@ constexpr uint32_t kTimestamps = 3;
 static_assert(uint32_t(RenderView::Shaded) == PK_VIEW_SHADED &&
               uint32_t(RenderView::Irradiance) == PK_VIEW_IRRADIANCE &&
               uint32_t(RenderView::Probes) == PK_VIEW_PROBES &&
-              uint32_t(RenderView::Validity) == PK_VIEW_VALIDITY);
+              uint32_t(RenderView::Validity) == PK_VIEW_VALIDITY &&
+              uint32_t(RenderView::Leak) == PK_VIEW_LEAK);
 static_assert(kMaxRenderLights == PK_MAX_LIGHTS);
 
 // Per-instance data of a probe sphere (probe_sphere.vert locations 1 and 2).
@@ -120,9 +121,15 @@ struct Renderer::Impl {
     VkRenderPass renderPass = VK_NULL_HANDLE;
     VkPipeline meshPipeline = VK_NULL_HANDLE;
     VkPipeline probePipeline = VK_NULL_HANDLE;
-    VkPipeline shadePipeline = VK_NULL_HANDLE;
-    VkPipeline probeViewsPipeline = VK_NULL_HANDLE;
-    VkPipeline fetchOnlyPipeline = VK_NULL_HANDLE;
+    // Shading pipelines by pk_visibility_mode (shaders/probe_volume.glsl): [0] specialised
+    // PK_VISIBILITY_OFF, for sets without visibility (exactly the hardware-filtered code), [1]
+    // visibilityMode, for sets with.
+    VkPipeline shadePipeline[2] = {VK_NULL_HANDLE, VK_NULL_HANDLE};
+    VkPipeline probeViewsPipeline[2] = {VK_NULL_HANDLE, VK_NULL_HANDLE};
+    VkPipeline fetchOnlyPipeline[2] = {VK_NULL_HANDLE, VK_NULL_HANDLE};
+    // PK_VISIBILITY_TAPS on CPU devices (which run both sides of uniform branches, so taps and
+    // filtered fetches alike: lavapipe), PK_VISIBILITY_BRANCH elsewhere.
+    uint32_t visibilityMode = PK_VISIBILITY_BRANCH;
     VkDescriptorPool pool = VK_NULL_HANDLE;
     VkDescriptorSet frameSet = VK_NULL_HANDLE;
     VkDescriptorSet shadeSet = VK_NULL_HANDLE;
@@ -163,7 +170,8 @@ Renderer::Impl::~Impl() {
         detail::destroy(d, *b);
     }
     for (VkPipeline p :
-         {meshPipeline, probePipeline, shadePipeline, probeViewsPipeline, fetchOnlyPipeline}) {
+         {meshPipeline, probePipeline, shadePipeline[0], shadePipeline[1], probeViewsPipeline[0],
+          probeViewsPipeline[1], fetchOnlyPipeline[0], fetchOnlyPipeline[1]}) {
         if (p != VK_NULL_HANDLE) {
             vkDestroyPipeline(d, p, nullptr);
         }
@@ -487,15 +495,22 @@ Result<void> Renderer::Impl::createPipelines() {
         info.subpass = 0;
         r = vkCreateGraphicsPipelines(d, VK_NULL_HANDLE, 1, &info, nullptr, graphics[i]);
     }
-    VkPipeline* computes[3] = {&shadePipeline, &probeViewsPipeline, &fetchOnlyPipeline};
+    VkPipeline* computes[3] = {shadePipeline, probeViewsPipeline, fetchOnlyPipeline};
+    const VkSpecializationMapEntry visibility_entry{PK_CONSTANT_VISIBILITY, 0, sizeof(uint32_t)};
     for (int i = 0; i < 3 && r == VK_SUCCESS; ++i) {
-        VkComputePipelineCreateInfo info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-        info.stage.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
-        info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-        info.stage.module = modules[size_t(3 + i)];
-        info.stage.pName = "main";
-        info.layout = shadePipelineLayout;
-        r = vkCreateComputePipelines(d, VK_NULL_HANDLE, 1, &info, nullptr, computes[i]);
+        for (uint32_t enabled = 0; enabled < 2 && r == VK_SUCCESS; ++enabled) {
+            const uint32_t value = enabled ? visibilityMode : PK_VISIBILITY_OFF;
+            const VkSpecializationInfo specialization{1, &visibility_entry, sizeof(value), &value};
+            VkComputePipelineCreateInfo info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+            info.stage.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
+            info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+            info.stage.module = modules[size_t(3 + i)];
+            info.stage.pName = "main";
+            info.stage.pSpecializationInfo = &specialization;
+            info.layout = shadePipelineLayout;
+            r = vkCreateComputePipelines(d, VK_NULL_HANDLE, 1, &info, nullptr,
+                                         &computes[i][enabled]);
+        }
     }
     destroy_modules();
     if (r != VK_SUCCESS) {
@@ -667,12 +682,16 @@ void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
     detail::imageBarrier(cmd, color.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                          VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_TRANSFER_BIT, 0,
                          VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT);
-    const bool probe_views =
-        settings.view == RenderView::Probes || settings.view == RenderView::Validity;
+    // The debug views' variant (shade.comp's PK_PROBE_VIEWS).
+    const bool probe_views = settings.view == RenderView::Probes ||
+                             settings.view == RenderView::Validity ||
+                             settings.view == RenderView::Leak;
+    // The visibility path only where the set needs it: without, the plain filtered code.
+    const size_t visibility = volumes.anyVisibility() ? 1 : 0;
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
-                      settings.fetchOnly ? fetchOnlyPipeline
-                      : probe_views      ? probeViewsPipeline
-                                         : shadePipeline);
+                      settings.fetchOnly ? fetchOnlyPipeline[visibility]
+                      : probe_views      ? probeViewsPipeline[visibility]
+                                         : shadePipeline[visibility]);
     const VkDescriptorSet sets[2] = {volumes.descriptorSet(), shadeSet};
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, shadePipelineLayout, 0, 2, sets, 0,
                             nullptr);
@@ -727,6 +746,9 @@ Result<Renderer> Renderer::create(GpuContext& context) {
     auto impl = std::make_unique<Impl>();
     impl->context = &context;
     const VkDevice d = context.device();
+    impl->visibilityMode = context.deviceInfo().type == VK_PHYSICAL_DEVICE_TYPE_CPU
+                               ? PK_VISIBILITY_TAPS
+                               : PK_VISIBILITY_BRANCH;
     PK_TRY(impl->createPipelines());
 
     const VkDescriptorPoolSize sizes[2] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 2},

@@ -14,6 +14,7 @@ layout(std430, set = 0, binding = 0) buffer Io {
     vec4 blended;
     vec4 own;
     vec4 fetched;
+    vec4 visible;
 };
 
 void main() {
@@ -25,4 +26,5 @@ void main() {
     blended = vec4(pk_irradiance(position.xyz, n), 1.0);
     own = vec4(pk_probe_irradiance(0u, uvec3(0u), n), 1.0);
     fetched = pk_fetch_only(position.xyz, n);
+    visible = vec4(pk_visible_weight(position.xyz, n));
 }

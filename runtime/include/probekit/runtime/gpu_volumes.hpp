@@ -13,6 +13,15 @@
 // (layout in shaders/probe_volume_layout.h). Hardware trilinear filtering inside a slot is the
 // brick interpolation of the CPU sampler (sampleVolumeSh's bricked steps).
 //
+// Visibility (formats/.../visibility.hpp, leak-proof interpolation) of a volume that has it is
+// uploaded as one RG32_UINT texel per probe (the probe's six bytes, then two zero bytes:
+// probe_volume_layout.h's "Visibility") into the slot's integer image, which a bricked volume
+// shares with its indirection (the set has no room for more images: PK_MAX_VOLUMES). Such a
+// volume carries PK_VOLUME_FLAG_VISIBILITY, and pk_irradiance interpolates it tap by tap with
+// visibility weights, the CPU sampler's step V. Visibility belongs to the volume's geometry:
+// it comes with the primary state (create, replaceVolume, updateBox), both states are weighted
+// by it, and a second state's own visibility bytes are ignored.
+//
 // The descriptor set (layout: probe_volume_layout.h, bindings PK_BINDING_*) holds one uniform
 // buffer (gpu::PkVolumeSetGpu: frames, boxes, fades, blending order, flags) and the planes of
 // up to PK_MAX_VOLUMES volumes in two states. Applications create their pipeline layouts with
@@ -86,14 +95,32 @@ glm::uvec3 brickAtlasSlot(uint32_t index, glm::uvec3 atlas_slots);
 // One volume's uniforms. `blend` in [0, 1] is the factor towards the second state; > 0 sets
 // PK_VOLUME_FLAG_BLEND (the caller guarantees a second state is bound). `atlas_slots`: for a
 // bricked volume the brickAtlasSlots its atlas was made with; ignored for dense volumes.
+// `visibility` sets PK_VOLUME_FLAG_VISIBILITY (the caller guarantees the visibility texels are
+// bound).
 gpu::PkVolumeGpu packVolumeGpu(const VolumeDesc& desc, float blend,
-                               glm::uvec3 atlas_slots = glm::uvec3(0u));
+                               glm::uvec3 atlas_slots = glm::uvec3(0u), bool visibility = false);
 
 // The whole uniform buffer. Preconditions: 1 <= descs.size() <= kMaxGpuVolumes, blends has one
-// entry per volume, atlas_slots one per volume or (no bricked volumes) none.
+// entry per volume, atlas_slots one per volume or (no bricked volumes) none, visibility one
+// per volume (nonzero: the volume has visibility) or (none has) none.
 gpu::PkVolumeSetGpu packVolumeSetGpu(std::span<const VolumeDesc> descs,
                                      std::span<const float> blends, float normal_offset,
-                                     std::span<const glm::uvec3> atlas_slots = {});
+                                     std::span<const glm::uvec3> atlas_slots = {},
+                                     std::span<const uint8_t> visibility = {});
+
+// Visibility texels (probe_volume_layout.h): 8 bytes per probe, the probe's six visibility
+// bytes then two zero bytes, i.e. RG32_UINT (q0 | q1 << 8 | q2 << 16 | q3 << 24, q4 | q5 << 8)
+// (and the same memory as RGBA16_UINT (q0 | q1 << 8, q2 | q3 << 8, q4 | q5 << 8, 0)).
+constexpr size_t kVisibilityTexelBytes = 8;
+// The visibility texels of the probes [first, first + count) of a dense volume with
+// visibility, z, y, x (x fastest). Preconditions as packTexelBox; `out` holds
+// visibilityBoxBytes(count) bytes.
+size_t visibilityBoxBytes(glm::uvec3 count);
+void packVisibilityBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count,
+                       std::span<uint8_t> out);
+// The extent of a bricked volume's integer image with visibility: the indirection (`cells`)
+// and, above it along z, the visibility atlas (`atlas_slots` * 4 texels per axis).
+glm::uvec3 brickedIntegerExtent(glm::uvec3 cells, glm::uvec3 atlas_slots);
 
 // The texels of the probes [first, first + count) of every plane, in staging order: plane by
 // plane, then z, y, x (x fastest), in the volume's storage format (raw float or half bits).
@@ -123,11 +150,18 @@ public:
     const VolumeDesc& desc(size_t index) const;
     // Validity bytes of the primary state (one per probe).
     const std::vector<uint8_t>& validity(size_t index) const;
+    // Whether the volume has visibility (its primary state's Volume::visibility was not empty).
+    bool hasVisibility(size_t index) const;
+    // Whether any volume of the set has: pipelines that specialise pk_visibility_mode
+    // PK_VISIBILITY_OFF (shaders/probe_volume.glsl) must not sample a set for which this is
+    // true.
+    bool anyVisibility() const;
     bool hasSecondState(size_t index) const;
     float stateBlend(size_t index) const;
     float normalOffset() const;
     // Bytes of texel data held on the GPU (both states; for bricked volumes the whole atlas,
-    // unused slots included, plus the u32 indirection).
+    // unused slots included, plus the u32 indirection) and of the integer images (indirection
+    // and visibility: for a bricked volume with visibility its whole image, 8 bytes a texel).
     size_t texelBytes() const;
     // Texel bytes copied to the GPU since creation (initial uploads included): moving a volume
     // or changing a blend factor leaves it unchanged.
@@ -136,8 +170,11 @@ public:
     VkDescriptorSetLayout descriptorSetLayout() const;
     VkDescriptorSet descriptorSet() const;
 
-    // Replaces a state's texels (and, for the primary state, validity and desc: bounds, frame,
-    // fade, priority, name) with `volume`'s. SH order and storage must match the slot's. A
+    // Replaces a state's texels (and, for the primary state, validity, visibility and desc:
+    // bounds, frame, fade, priority, name) with `volume`'s. A primary replacement may switch
+    // visibility on or off (the slot's integer image is reallocated, and the descriptor set
+    // rewritten, with the waiting and invalidation of a relayout below); a secondary one
+    // ignores `volume`'s visibility. SH order and storage must match the slot's. A
     // dense slot replaced by a dense volume keeps its images: resolution and position mode
     // must match. A primary replacement where the slot or `volume` is bricked may change the
     // layout (top bricks, brick list, dense <-> bricked): the images are reallocated when their
@@ -148,10 +185,12 @@ public:
                                VolumeState state = VolumeState::Primary);
 
     // Copies the texels of probes [first, first + count) from `source` (same layout as the
-    // slot) into a state, and nothing else; for the primary state the validity of the box too.
-    // Dense volumes only. Fails with OutOfRange when the box is empty or leaves the grid, and
-    // with InvalidArgument for a bricked slot or source (a box of probes means nothing in the
-    // atlas: replace the whole volume).
+    // slot) into a state, and nothing else; for the primary state the validity and visibility
+    // of the box too (`source` must then have visibility exactly when the slot has; a
+    // secondary update ignores it). Dense volumes only. Fails with OutOfRange when the box is
+    // empty or leaves the grid, and with InvalidArgument for a bricked slot or source (a box
+    // of probes means nothing in the atlas: replace the whole volume) or a visibility
+    // mismatch.
     Result<void> updateBox(size_t index, const Volume& source, glm::uvec3 first, glm::uvec3 count,
                            VolumeState state = VolumeState::Primary);
 

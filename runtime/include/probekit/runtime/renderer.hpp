@@ -11,7 +11,15 @@
 // loads scenes through probekit::baker and flattens them).
 //
 // Frame and units: glTF world (metres, +Y up). Outputs are linear: radiance W/(sr m^2) in the
-// shaded, probes and validity views, irradiance E W/m^2 in the irradiance view.
+// shaded, probes and validity views, irradiance E W/m^2 in the irradiance view, a colour ramp
+// of a dimensionless share in the leak view.
+//
+// Sets whose volumes have no visibility (GpuVolumeSet::anyVisibility false) are shaded by
+// pipelines with the visibility path specialised out (pk_visibility_mode PK_VISIBILITY_OFF,
+// shaders/probe_volume.glsl), so they cost what they did before visibility existed; sets with
+// visibility by PK_VISIBILITY_TAPS pipelines on CPU devices (lavapipe, which runs both sides of
+// uniform branches: every volume tap by tap, no filtered fetch) and PK_VISIBILITY_BRANCH ones
+// elsewhere (volumes without visibility keep the hardware filter).
 #pragma once
 
 #include <cstdint>
@@ -63,6 +71,11 @@ enum class RenderView : uint32_t {
                     // brick's probe spacing), so the adaptive refinement shows
     Validity = 3,   // probe spheres only (none hidden by walls): valid ones lit by their SH,
                     // invalid ones flat red
+    Leak = 4,       // the visible share v of the trilinear weight (runtime::visibleWeight,
+                    // blended over volumes as irradiance is: pk_visible_weight) as the ramp
+                    // rgb = (1, v, v): white where no interpolation tap is hidden (v = 1, also
+                    // everywhere for volumes without visibility), red where every tap is
+                    // (v = 0, plain trilinear interpolation would leak light through a wall)
 };
 
 enum class LightType : uint8_t { Point, Spot, Directional };
