@@ -62,6 +62,21 @@ expect 0 "wrote bp.png: 64x48, probes view" -- "$pk" render cornell.gltf bricked
 expect 0 "wrote bs.png: 64x48, shaded view" -- "$pk" render cornell.gltf bricked.pvol -o bs.png \
     --size 64,48
 
+# Visibility (baked by default): the leak view, and --bench times the same volume with and
+# without it; --no-visibility drops it (plain trilinear interpolation).
+"$pk" bake cornell.gltf -o dense.pvol --samples 16 -q || exit 1
+expect 0 "wrote leak.png: 64x48, leak view" -- "$pk" render cornell.gltf dense.pvol -o leak.png \
+    --size 64,48 --view leak
+expect 0 "wrote bleak.png: 64x48, leak view" -- "$pk" render cornell.gltf bricked.pvol \
+    -o bleak.png --size 64,48 --view leak
+expect 0 '"shade_no_visibility_ms":.*"shade_visibility_over_none":.*"visibility":true' -- \
+    "$pk" render cornell.gltf dense.pvol -o bv.png --size 32,24 --bench 2
+expect 0 '"visibility":false' -- "$pk" render cornell.gltf dense.pvol -o bn.png --size 32,24 \
+    --bench 2 --no-visibility
+expect 0 '"visibility":true' -- "$pk" render cornell.gltf volume.pvol -o bt.png --size 32,24 \
+    --bench 2 --test-visibility 0.5
+expect 0 "no-visibility" -- "$pk" render --help
+
 expect 2 "png or .exr" -- "$pk" render cornell.gltf volume.pvol -o out.jpg
 check "no output for a bad extension" test ! -e out.jpg
 expect 2 "" -- "$pk" render cornell.gltf volume.pvol -o x.png --view nope

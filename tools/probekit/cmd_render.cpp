@@ -10,6 +10,8 @@
 #include <cstring>
 #include <filesystem>
 #include <memory>
+#include <optional>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -44,7 +46,22 @@ struct RenderOptions {
     int bench = 0;
     bool directLight = false;
     float normalOffset = 0.0f;
+    bool noVisibility = false;
+    float testVisibility = -1.0f; // hidden: < 0 off, else the share of hidden half-axes
 };
+
+// The hidden --test-visibility option (timing the visibility path before a volume has baked
+// visibility): every probe's six half-axes get a deterministic pseudo-random distance byte in
+// 0..254 with probability `share`, else visibility::kClear.
+void fillTestVisibility(Volume& volume, float share) {
+    std::mt19937 rng(12345);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    std::uniform_int_distribution<int> byte(0, 254);
+    volume.visibility.resize(volume.probeCount() * visibility::kBytesPerProbe);
+    for (uint8_t& q : volume.visibility) {
+        q = unit(rng) < share ? uint8_t(byte(rng)) : visibility::kClear;
+    }
+}
 
 std::string extensionOf(const std::string& path) {
     std::string ext = std::filesystem::path(path).extension().string();
@@ -189,7 +206,16 @@ int runRender(const RenderOptions& o) {
     if (!file) {
         return fail(file.error().message);
     }
-    const std::vector<Volume>& volumes = file.value().volumes;
+    std::vector<Volume>& volumes = file.value().volumes;
+    for (Volume& v : volumes) {
+        if (o.noVisibility) {
+            v.visibility.clear(); // plain trilinear interpolation
+        } else if (o.testVisibility >= 0.0f) {
+            fillTestVisibility(v, o.testVisibility);
+        }
+    }
+    const bool any_visibility = std::any_of(volumes.begin(), volumes.end(),
+                                            [](const Volume& v) { return v.hasVisibility(); });
     if (volumes.empty() || volumes.size() > runtime::kMaxGpuVolumes) {
         return fail(o.volumes + ": " + std::to_string(volumes.size()) +
                     " volumes; the Vulkan runtime renders 1.." +
@@ -253,7 +279,7 @@ int runRender(const RenderOptions& o) {
         settings.camera.nearPlane = std::max(1e-4f, 1e-3f * reach);
         settings.camera.farPlane = 2.0f * reach + 1.0f;
     }
-    const std::string views[] = {"shaded", "irradiance", "probes", "validity"};
+    const std::string views[] = {"shaded", "irradiance", "probes", "validity", "leak"};
     settings.view = runtime::RenderView(std::find(std::begin(views), std::end(views), o.view) -
                                         std::begin(views));
     settings.directLight = o.directLight;
@@ -274,27 +300,49 @@ int runRender(const RenderOptions& o) {
     if (o.bench > 0) {
         runtime::FrameSettings timed = settings;
         timed.readbackColor = false;
+        // With visibility, the same volumes without it as well (a second set), so the bench
+        // compares the two on the same data.
+        std::vector<runtime::GpuVolumeSet*> sets{&set.value()};
+        std::optional<runtime::GpuVolumeSet> plain_set;
+        if (any_visibility) {
+            std::vector<Volume> plain = volumes;
+            for (Volume& v : plain) {
+                v.visibility.clear();
+            }
+            Result<runtime::GpuVolumeSet> created = runtime::GpuVolumeSet::create(gpu, plain);
+            if (!created) {
+                return fail(o.volumes + ": " + created.error().message);
+            }
+            plain_set.emplace(std::move(created.value()));
+            plain_set->setNormalOffset(o.normalOffset);
+            sets.push_back(&*plain_set);
+        }
         // Warm-up: pipelines compile on first use (lavapipe) and caches fill.
         for (int i = 0; i < kWarmupFrames; ++i) {
-            for (bool fetch_only : {false, true}) {
-                timed.fetchOnly = fetch_only;
-                if (auto r = renderer.value().render(set.value(), timed); !r) {
-                    return fail(r.error().message);
+            for (runtime::GpuVolumeSet* s : sets) {
+                for (bool fetch_only : {false, true}) {
+                    timed.fetchOnly = fetch_only;
+                    if (auto r = renderer.value().render(*s, timed); !r) {
+                        return fail(r.error().message);
+                    }
                 }
             }
         }
-        // Shading and fetch-only frames alternate, so both see the same machine load.
-        std::vector<double> gbuffer_ms, shade_ms, fetch_ms;
+        // Shading and fetch-only frames (of each set) alternate, so all see the same machine
+        // load.
+        std::vector<double> gbuffer_ms, shade_ms[2], fetch_ms[2];
         for (int i = 0; i < o.bench; ++i) {
-            for (bool fetch_only : {false, true}) {
-                timed.fetchOnly = fetch_only;
-                Result<runtime::Frame> frame = renderer.value().render(set.value(), timed);
-                if (!frame) {
-                    return fail(frame.error().message);
-                }
-                (fetch_only ? fetch_ms : shade_ms).push_back(frame.value().timings.shadeMs);
-                if (!fetch_only) {
-                    gbuffer_ms.push_back(frame.value().timings.gbufferMs);
+            for (size_t k = 0; k < sets.size(); ++k) {
+                for (bool fetch_only : {false, true}) {
+                    timed.fetchOnly = fetch_only;
+                    Result<runtime::Frame> frame = renderer.value().render(*sets[k], timed);
+                    if (!frame) {
+                        return fail(frame.error().message);
+                    }
+                    (fetch_only ? fetch_ms : shade_ms)[k].push_back(frame.value().timings.shadeMs);
+                    if (!fetch_only && k == 0) {
+                        gbuffer_ms.push_back(frame.value().timings.gbufferMs);
+                    }
                 }
             }
         }
@@ -302,7 +350,7 @@ int runRender(const RenderOptions& o) {
         // against a plain memcpy of the same bytes.
         size_t upload_bytes = 0;
         for (const Volume& v : volumes) {
-            upload_bytes += v.texelBytes();
+            upload_bytes += v.texelBytes() + v.visibilityGpuBytes();
         }
         std::vector<double> upload_ms, memcpy_ms;
         std::vector<uint8_t> source(upload_bytes, 1);
@@ -320,8 +368,8 @@ int runRender(const RenderOptions& o) {
             memcpy_ms.push_back(millisecondsSince(copy_start));
             source[size_t(r) % upload_bytes] ^= destination[upload_bytes - 1];
         }
-        const double shade = median(shade_ms);
-        const double fetch = median(fetch_ms);
+        const double shade = median(shade_ms[0]);
+        const double fetch = median(fetch_ms[0]);
         const double upload = median(upload_ms);
         const double copy = std::max(median(memcpy_ms), 1e-6);
         bench = {{"device", gpu.deviceInfo().name},
@@ -340,7 +388,16 @@ int runRender(const RenderOptions& o) {
                  {"memcpy_ms", copy},
                  {"upload_gb_per_s", double(upload_bytes) / (upload * 1e6)},
                  {"memcpy_gb_per_s", double(upload_bytes) / (copy * 1e6)},
-                 {"upload_over_memcpy", upload / copy}};
+                 {"upload_over_memcpy", upload / copy},
+                 {"visibility", any_visibility}};
+        if (any_visibility) {
+            const double plain_shade = median(shade_ms[1]);
+            const double plain_fetch = median(fetch_ms[1]);
+            bench["shade_no_visibility_ms"] = plain_shade;
+            bench["fetch_only_no_visibility_ms"] = plain_fetch;
+            bench["shade_visibility_over_none"] = shade / plain_shade;
+            bench["fetch_only_visibility_over_none"] = fetch / plain_fetch;
+        }
     }
 
     Result<runtime::Frame> frame = renderer.value().render(set.value(), settings);
@@ -394,15 +451,27 @@ void addRenderCommand(CLI::App& app, Command& selected) {
     cmd->add_option("--view", o->view,
                     "shaded (albedo/pi x E + emission), irradiance (E, W/m^2), probes (spheres "
                     "lit by their own SH; for bricked volumes flat spheres coloured by brick "
-                    "level: 0 blue, 1 green, 2 yellow, 3 magenta), validity (invalid probes red)")
-        ->check(CLI::IsMember({"shaded", "irradiance", "probes", "validity"}))
+                    "level: 0 blue, 1 green, 2 yellow, 3 magenta), validity (invalid probes "
+                    "red), leak (the visible share v of the interpolation weight as (1, v, v): "
+                    "white where no probe is hidden, red where all are; white everywhere "
+                    "without visibility data)")
+        ->check(CLI::IsMember({"shaded", "irradiance", "probes", "validity", "leak"}))
         ->capture_default_str();
     cmd->add_option("--exposure", o->exposure, "scale by 2^EV before writing")
         ->capture_default_str();
     cmd->add_option("--bench", o->bench,
                     "after warm-up, time N frames of the shading pass and of its fetch-only "
-                    "floor, and the volume upload; print one JSON line")
+                    "floor, and the volume upload; print one JSON line. Volumes with visibility "
+                    "are also timed without it (frames alternating): shade_no_visibility_ms, "
+                    "shade_visibility_over_none")
         ->check(CLI::Range(1, 100000));
+    cmd->add_flag("--no-visibility", o->noVisibility,
+                  "drop the volumes' visibility data before upload: plain trilinear "
+                  "interpolation, as for volumes baked without it (compare with and without)");
+    // Hidden: synthetic visibility for timing the visibility path on volumes without any.
+    cmd->add_option("--test-visibility", o->testVisibility)
+        ->check(CLI::Range(0.0f, 1.0f))
+        ->group("");
     cmd->add_flag("--direct-light", o->directLight,
                   "add unshadowed direct light from the scene's punctual lights (for volumes "
                   "baked without it)");
