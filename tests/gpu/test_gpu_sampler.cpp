@@ -774,3 +774,425 @@ TEST_F(GpuSampler, BrickedReplaceAndSecondState) {
 }
 
 } // namespace
+
+// ---- Visibility (leak-proof interpolation): pk_visible_texels against the CPU's step V ----
+
+namespace {
+
+// Tolerances: the dense and bricked ones above (kFloatRelative, kHalfRelative), point by point.
+// Both sides weight the same decoded texels with the same formula in float (visibility.hpp),
+// the GPU with texelFetch, so no filter weights are involved; the visibility ramp is 1/32 of a
+// cell wide, so a ~1e-6 cell difference in the sample point (rotation matrix against
+// quaternion) moves a tap's weight by ~3e-5 of it, and normalising by a small weight sum (every
+// tap hidden but one, partly) can enlarge that: the measured maxima are printed.
+
+// Visibility bytes that hide some probes strongly: 15% of the probes get 0 on every half-axis
+// (hidden from every point of their cells beyond 1/32 cell), the others per half-axis 255 (no
+// surface within a cell) a quarter of the time, else a random distance.
+void addVisibility(Volume& volume, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    std::uniform_int_distribution<int> byte(0, 255);
+    volume.visibility.assign(volume.probeCount() * visibility::kBytesPerProbe, 0);
+    for (size_t probe = 0; probe < volume.probeCount(); ++probe) {
+        const bool hidden = unit(rng) < 0.15f;
+        for (size_t h = 0; h < visibility::kBytesPerProbe; ++h) {
+            uint8_t q = 0;
+            if (!hidden) {
+                q = unit(rng) < 0.25f ? visibility::kClear : uint8_t(byte(rng));
+            }
+            volume.visibility[probe * visibility::kBytesPerProbe + h] = q;
+        }
+    }
+    ASSERT_TRUE(validateVolume(volume).ok());
+}
+
+Volume withVisibility(Volume volume, uint32_t seed) {
+    addVisibility(volume, seed);
+    return volume;
+}
+
+Volume withoutVisibility(Volume volume) {
+    volume.visibility.clear();
+    return volume;
+}
+
+// World positions of a volume's probes (dense grid or brick lattice).
+std::vector<glm::vec3> probePositions(const Volume& v) {
+    std::vector<glm::vec3> out;
+    if (v.desc.layout == VolumeLayout::Bricked) {
+        for (const brick::Brick& b : v.desc.bricks.bricks) {
+            for (uint32_t k = 0; k < brick::kBrickProbeCount; ++k) {
+                out.push_back(v.desc.grid.frame().toWorld(bricktest::probeLocal(v.desc, b, k)));
+            }
+        }
+    } else {
+        for (size_t i = 0; i < v.probeCount(); ++i) {
+            out.push_back(v.desc.grid.probeWorld(v.desc.grid.probeCoords(i)));
+        }
+    }
+    return out;
+}
+
+// Points in the cells around hidden probes (those with a zero byte): up to half a cell of the
+// finest spacing from the probe, so inside the visibility ramps and beyond, and with
+// `exact_points` some exactly at the probe or on the cell faces through it.
+std::vector<Sample> nearHiddenProbes(const std::vector<Volume>& volumes, size_t count,
+                                     uint32_t seed, bool exact_points = true) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> offset(-0.5f, 0.5f);
+    std::vector<Sample> samples;
+    for (const Volume& v : volumes) {
+        if (!v.hasVisibility()) {
+            continue;
+        }
+        const std::vector<glm::vec3> positions = probePositions(v);
+        std::vector<size_t> hidden;
+        for (size_t i = 0; i < v.probeCount(); ++i) {
+            const uint8_t* q = &v.visibility[i * visibility::kBytesPerProbe];
+            if (std::find(q, q + visibility::kBytesPerProbe, uint8_t(0)) !=
+                q + visibility::kBytesPerProbe) {
+                hidden.push_back(i);
+            }
+        }
+        const glm::vec3 spacing =
+            v.desc.layout == VolumeLayout::Bricked
+                ? v.desc.grid.bounds().size() /
+                      (3.0f * glm::vec3(brick::finestCells(v.desc.grid.resolution(),
+                                                           v.desc.bricks.maxLevel)))
+                : v.desc.grid.spacing();
+        std::uniform_int_distribution<size_t> pick(0, hidden.size() - 1);
+        for (size_t i = 0; i < count && !hidden.empty(); ++i) {
+            const glm::vec3 local = v.desc.grid.frame().toLocal(positions[hidden[pick(rng)]]);
+            const glm::vec3 d(offset(rng), offset(rng), offset(rng));
+            // A few exactly at the probe and on the cell faces through it.
+            glm::vec3 step = d * spacing;
+            if (exact_points && i % 7 == 0) {
+                step = glm::vec3(0.0f);
+            } else if (exact_points && i % 7 == 1) {
+                step[int(i / 7) % 3] = 0.0f;
+            }
+            samples.push_back({v.desc.grid.frame().toWorld(local + step), randomUnit(rng)});
+        }
+    }
+    return samples;
+}
+
+// Bricked volumes with these random bytes are discontinuous across brick faces (a border probe
+// and the coincident probe of the neighbouring brick hold different bytes; baked ones differ
+// too where the two bricks' spacings do, since distances are in each probe's own cells). Where
+// GPU and CPU may put a point on a face into different bricks, in rotated frames where the face
+// is only within rounding of the point, the two answers differ by that jump, both right: so,
+// as for the half-volume border points above, points on faces (brick borders, and the exact
+// points of nearHiddenProbes) are sampled in identity frames only.
+struct VisibilityCase {
+    std::string name;
+    std::vector<Volume> volumes;
+    bool facePoints = true; // points exactly on (brick) cell faces
+};
+
+std::vector<VisibilityCase> visibilityCases() {
+    std::vector<VisibilityCase> out;
+    const std::vector<Case> dense = cases();
+    // Dense: L2 centre float and half, L1 corner rotated float and half.
+    for (size_t c : {size_t(0), size_t(1), size_t(2), size_t(3), size_t(4)}) {
+        out.push_back({dense[c].name + "_visibility",
+                       {withVisibility(buildVolumes(dense[c].specs)[0], uint32_t(100 + c))}});
+    }
+    // Bricked: mixed levels float and half, nested, L1 rotated float and half.
+    const std::vector<BrickedCase> bricked = brickedCases();
+    for (size_t c : {size_t(1), size_t(2), size_t(3), size_t(4), size_t(5)}) {
+        const bool rotated = c >= 4;
+        out.push_back({bricked[c].name + "_visibility",
+                       {withVisibility(bricked[c].volumes[0], uint32_t(200 + c))},
+                       !rotated});
+    }
+    // A set mixing volumes with and without visibility: the overlapping case with visibility
+    // on the big and the tilted volume, and the bricked-over-dense case on the bricked one.
+    std::vector<Volume> overlapping = buildVolumes(dense[5].specs);
+    addVisibility(overlapping[0], 301);
+    addVisibility(overlapping[1], 302);
+    out.push_back({"overlapping_fade_mixed_visibility", overlapping});
+    std::vector<Volume> over = bricked[6].volumes; // the bricked volume is rotated
+    addVisibility(over[1], 303);
+    out.push_back({"bricked_over_dense_mixed_visibility", over, false});
+    return out;
+}
+
+// How far visibility moves the CPU result at the samples (the test must not pass vacuously):
+// the share of points changed by more than 5% of the scale, and the largest change.
+struct VisibilityEffect {
+    double changedShare = 0.0;
+    float maxChange = 0.0f;
+};
+
+VisibilityEffect visibilityEffect(const std::vector<Volume>& volumes,
+                                  const std::vector<Sample>& samples) {
+    std::vector<Volume> plain;
+    for (const Volume& v : volumes) {
+        plain.push_back(withoutVisibility(v));
+    }
+    const VolumeSet with(volumes);
+    const VolumeSet without(plain);
+    std::vector<float> magnitudes;
+    std::vector<float> changes;
+    for (const Sample& s : samples) {
+        const glm::vec3 a = with.irradiance(s.position, s.normal);
+        const glm::vec3 b = without.irradiance(s.position, s.normal);
+        const glm::vec3 m = glm::abs(a);
+        magnitudes.push_back(std::max(m.x, std::max(m.y, m.z)));
+        const glm::vec3 d = glm::abs(a - b);
+        changes.push_back(std::max(d.x, std::max(d.y, d.z)));
+    }
+    std::vector<float> sorted = magnitudes;
+    std::nth_element(sorted.begin(), sorted.begin() + long(sorted.size() / 2), sorted.end());
+    const float floor = kScaleFloor * sorted[sorted.size() / 2];
+    VisibilityEffect out;
+    size_t changed = 0;
+    for (size_t i = 0; i < samples.size(); ++i) {
+        const float relative = changes[i] / std::max(magnitudes[i], floor);
+        out.maxChange = std::max(out.maxChange, relative);
+        changed += relative > 0.05f ? 1 : 0;
+    }
+    out.changedShare = double(changed) / double(samples.size());
+    return out;
+}
+
+std::vector<Sample> visibilitySamples(const VisibilityCase& c, uint32_t seed) {
+    std::vector<Sample> samples = samplePoints(c.volumes, kPointsPerCase, seed);
+    const std::vector<Sample> near =
+        nearHiddenProbes(c.volumes, kPointsPerCase / 2, seed + 1, c.facePoints);
+    samples.insert(samples.end(), near.begin(), near.end());
+    if (c.facePoints) {
+        const std::vector<Sample> borders = brickBorderPoints(c.volumes, kPointsPerCase / 4, 43);
+        samples.insert(samples.end(), borders.begin(), borders.end());
+    }
+    return samples;
+}
+
+TEST_F(GpuSampler, VisibilityMatchesCpuSampler) {
+    uint32_t seed = 500;
+    float worst = 0.0f;
+    for (const VisibilityCase& c : visibilityCases()) {
+        SCOPED_TRACE(c.name);
+        Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), c.volumes);
+        ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+        const std::vector<Sample> samples = visibilitySamples(c, seed);
+        seed += 7;
+        const VisibilityEffect effect = visibilityEffect(c.volumes, samples);
+        std::printf("[ figures  ] %s: visibility changes %.1f%% of the points by > 5%% (max "
+                    "%.3g of the scale)\n",
+                    c.name.c_str(), 100.0 * effect.changedShare, double(effect.maxChange));
+        // Not vacuous: the weights really differ from trilinear interpolation (measured 4.9%
+        // of the points for the mixed set, where the volume with visibility covers a part,
+        // 12.8% and more for the others).
+        EXPECT_GT(effect.changedShare, 0.03) << c.name;
+        EXPECT_GT(effect.maxChange, 0.3f) << c.name;
+        const Comparison result = compareWithCpu(context(), gpu.value(), VolumeSet(c.volumes),
+                                                 samples, relativeFor(c.volumes), 0.0f, c.name);
+        worst = std::max(worst, result.maxRelative);
+    }
+    std::printf("[ figures  ] visibility: worst max |GPU - CPU| / scale over all cases = %.3g\n",
+                double(worst));
+}
+
+TEST_F(GpuSampler, VisibilitySecondStateBlend) {
+    // Both states take the primary's visibility; the second state's own bytes are ignored.
+    for (bool bricked : {false, true}) {
+        for (Storage storage : {Storage::Float32, Storage::Float16}) {
+            const std::string name =
+                std::string(bricked ? "bricked" : "dense") + "_" + std::string(toString(storage));
+            SCOPED_TRACE(name);
+            Volume state_a;
+            Volume state_b;
+            if (bricked) {
+                BrickedSpec spec;
+                spec.storage = storage;
+                state_a = makeBricked(spec, kFieldA);
+                state_b = makeBricked(spec, kFieldC);
+            } else {
+                VolumeSpec spec = cases()[2].specs[0]; // L1, corner, rotated
+                spec.storage = storage;
+                state_a = makeTestVolume(spec, kFieldA);
+                state_b = makeTestVolume(spec, kFieldC);
+            }
+            addVisibility(state_a, 41);
+            addVisibility(state_b, 42); // different bytes: must not be used
+            const std::vector<Volume> initial{state_a};
+            Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), initial);
+            ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+            ASSERT_TRUE(
+                gpu.value().replaceVolume(0, state_b, runtime::VolumeState::Secondary).ok());
+            EXPECT_TRUE(gpu.value().hasVisibility(0));
+            Volume b_weighted_by_a = state_b;
+            b_weighted_by_a.visibility = state_a.visibility;
+            const VolumeSet cpu_a(initial);
+            const VolumeSet cpu_b(std::vector<Volume>{b_weighted_by_a});
+            std::vector<Sample> samples = samplePoints(initial, 4000, 61);
+            const std::vector<Sample> near = nearHiddenProbes(initial, 2000, 62);
+            samples.insert(samples.end(), near.begin(), near.end());
+            Result<GpuPointSampler> sampler = GpuPointSampler::create(context());
+            ASSERT_TRUE(sampler.ok());
+            std::vector<glm::vec3> positions;
+            std::vector<glm::vec3> normals;
+            for (const Sample& s : samples) {
+                positions.push_back(s.position);
+                normals.push_back(s.normal);
+            }
+            for (float t : {0.0f, 0.3f, 1.0f}) {
+                gpu.value().setStateBlend(0, t);
+                Result<std::vector<glm::vec3>> e =
+                    sampler.value().irradiance(gpu.value(), positions, normals);
+                ASSERT_TRUE(e.ok()) << e.error().message;
+                float worst = 0.0f;
+                for (size_t i = 0; i < samples.size(); ++i) {
+                    // The weights are the same for both states, so the blend is the lerp.
+                    const glm::vec3 a = cpu_a.irradiance(positions[i], normals[i]);
+                    const glm::vec3 b = cpu_b.irradiance(positions[i], normals[i]);
+                    const glm::vec3 expected = (1.0f - t) * a + t * b;
+                    const float scale =
+                        std::max({std::abs(expected.x), std::abs(expected.y), std::abs(expected.z),
+                                  0.05f * glm::length(a + b)});
+                    const glm::vec3 d = glm::abs(e.value()[i] - expected);
+                    worst = std::max(worst, std::max(d.x, std::max(d.y, d.z)) / scale);
+                }
+                std::printf("[ figures  ] visibility blend %s t=%.2f: max |GPU - lerp(CPU a, "
+                            "CPU b)| / scale = %.3g\n",
+                            name.c_str(), double(t), double(worst));
+                EXPECT_LE(worst, storage == Storage::Float16 ? kHalfRelative : kFloatRelative)
+                    << "blend factor " << t;
+            }
+        }
+    }
+}
+
+TEST_F(GpuSampler, ReplaceVolumeSwitchesVisibility) {
+    for (bool bricked : {false, true}) {
+        SCOPED_TRACE(bricked ? "bricked" : "dense");
+        const Volume plain =
+            bricked ? makeBricked(BrickedSpec{}, kFieldA) : buildVolumes(cases()[0].specs)[0];
+        const Volume visible = withVisibility(plain, 71);
+        const Volume other = withVisibility(bricked ? makeBricked(BrickedSpec{}, kFieldB)
+                                                    : buildVolumes({cases()[0].specs})[0],
+                                            72);
+        const std::vector<Volume> initial{plain};
+        Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), initial);
+        ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+        const size_t plain_bytes = gpu.value().texelBytes();
+        EXPECT_FALSE(gpu.value().anyVisibility());
+        const auto check = [&](const Volume& expected, const std::string& name) {
+            std::vector<Sample> samples = samplePoints({expected}, 3000, 73);
+            const std::vector<Sample> near = nearHiddenProbes({expected}, 1500, 74);
+            samples.insert(samples.end(), near.begin(), near.end());
+            compareWithCpu(context(), gpu.value(), VolumeSet({expected}), samples, kFloatRelative,
+                           0.0f, name);
+        };
+        // Off -> on: the integer image grows by 8 bytes per probe (dense) or becomes the
+        // indirection plus the visibility atlas in 8-byte texels (bricked).
+        size_t uploaded = gpu.value().uploadedBytes();
+        ASSERT_TRUE(gpu.value().replaceVolume(0, visible).ok());
+        EXPECT_TRUE(gpu.value().hasVisibility(0) && gpu.value().anyVisibility());
+        EXPECT_EQ(gpu.value().uploadedBytes() - uploaded,
+                  visible.texelBytes() + visible.visibilityGpuBytes() +
+                      visible.indirection.size() * (bricked ? 8 : 0));
+        if (bricked) {
+            const glm::uvec3 cells =
+                brick::finestCells(visible.desc.grid.resolution(), visible.desc.bricks.maxLevel);
+            const glm::uvec3 slots =
+                runtime::brickAtlasSlots(visible.desc.bricks.bricks.size(),
+                                         context().limits().maxImageDimension3D)
+                    .value();
+            const glm::uvec3 e = runtime::brickedIntegerExtent(cells, slots);
+            EXPECT_EQ(gpu.value().texelBytes() - plain_bytes,
+                      size_t(e.x) * e.y * e.z * 8 - visible.indirection.size() * 4);
+        } else {
+            EXPECT_EQ(gpu.value().texelBytes() - plain_bytes, visible.probeCount() * 8);
+        }
+        check(visible, std::string(bricked ? "bricked" : "dense") + "_visibility_on");
+        // On -> on with other data, then off again.
+        ASSERT_TRUE(gpu.value().replaceVolume(0, other).ok());
+        check(other, std::string(bricked ? "bricked" : "dense") + "_visibility_replaced");
+        ASSERT_TRUE(gpu.value().replaceVolume(0, plain).ok());
+        EXPECT_FALSE(gpu.value().hasVisibility(0));
+        EXPECT_EQ(gpu.value().texelBytes(), plain_bytes);
+        check(plain, std::string(bricked ? "bricked" : "dense") + "_visibility_off");
+    }
+    // A dense slot with a second state switches too; the second state keeps its texels.
+    const Volume a = buildVolumes(cases()[0].specs)[0];
+    const VolumeSpec spec = cases()[0].specs[0];
+    const Volume second = makeTestVolume(spec, kFieldC);
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), std::vector<Volume>{a});
+    ASSERT_TRUE(gpu.ok());
+    ASSERT_TRUE(gpu.value().replaceVolume(0, second, runtime::VolumeState::Secondary).ok());
+    gpu.value().setStateBlend(0, 1.0f);
+    const Volume visible_a = withVisibility(a, 75);
+    ASSERT_TRUE(gpu.value().replaceVolume(0, visible_a).ok());
+    Volume second_weighted = second;
+    second_weighted.visibility = visible_a.visibility;
+    compareWithCpu(context(), gpu.value(), VolumeSet({second_weighted}),
+                   samplePoints({second_weighted}, 3000, 76), kFloatRelative, 0.0f,
+                   "second_state_visibility_on");
+}
+
+TEST_F(GpuSampler, UpdateBoxCopiesVisibility) {
+    VolumeSpec spec = cases()[0].specs[0];
+    const Volume before = withVisibility(makeTestVolume(spec, kFieldA), 81);
+    const Volume source = withVisibility(makeTestVolume(spec, kFieldB, 3), 82);
+    const glm::uvec3 first(2, 1, 3);
+    const glm::uvec3 count(3, 2, 4);
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), std::vector<Volume>{before});
+    ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+    const size_t uploaded = gpu.value().uploadedBytes();
+    ASSERT_TRUE(gpu.value().updateBox(0, source, first, count).ok());
+    const size_t box = size_t(count.x) * count.y * count.z;
+    EXPECT_EQ(gpu.value().uploadedBytes() - uploaded, box * before.planes() * 16 + box * 8);
+    // The CPU twin: texels, validity and visibility of the box from the source.
+    Volume expected = withBox(before, source, first, count);
+    const grid::GridLayout& layout = before.desc.grid;
+    for (uint32_t z = first.z; z < first.z + count.z; ++z) {
+        for (uint32_t y = first.y; y < first.y + count.y; ++y) {
+            for (uint32_t x = first.x; x < first.x + count.x; ++x) {
+                const size_t probe = layout.linearIndex({x, y, z});
+                std::copy_n(&source.visibility[probe * visibility::kBytesPerProbe],
+                            visibility::kBytesPerProbe,
+                            &expected.visibility[probe * visibility::kBytesPerProbe]);
+            }
+        }
+    }
+    std::vector<Sample> samples = samplePoints({expected}, 4000, 83);
+    const std::vector<Sample> near = nearHiddenProbes({expected}, 2000, 84);
+    samples.insert(samples.end(), near.begin(), near.end());
+    compareWithCpu(context(), gpu.value(), VolumeSet({expected}), samples, kFloatRelative, 0.0f,
+                   "update_box_visibility");
+    // Not vacuous: the box's visibility changes the result (against keeping the old bytes).
+    Volume stale = expected;
+    stale.visibility = before.visibility;
+    const VolumeSet cpu_expected({expected});
+    const VolumeSet cpu_stale({stale});
+    size_t changed = 0;
+    for (const Sample& s : samples) {
+        const glm::vec3 e = cpu_expected.irradiance(s.position, s.normal);
+        changed +=
+            glm::length(e - cpu_stale.irradiance(s.position, s.normal)) > 0.05f * glm::length(e)
+                ? 1
+                : 0;
+    }
+    EXPECT_GT(changed, samples.size() / 100) << "the box's visibility changes nothing";
+    // A source without visibility cannot update a slot with it (and vice versa); a second
+    // state's box ignores visibility.
+    const Result<void> mismatch = gpu.value().updateBox(0, withoutVisibility(source), first, count);
+    ASSERT_FALSE(mismatch.ok());
+    EXPECT_EQ(mismatch.error().code, ErrorCode::InvalidArgument);
+    EXPECT_NE(mismatch.error().message.find("visibility"), std::string::npos);
+    Result<GpuVolumeSet> plain =
+        GpuVolumeSet::create(context(), std::vector<Volume>{withoutVisibility(before)});
+    ASSERT_TRUE(plain.ok());
+    EXPECT_FALSE(plain.value().updateBox(0, source, first, count).ok());
+    ASSERT_TRUE(plain.value()
+                    .replaceVolume(0, withoutVisibility(source), runtime::VolumeState::Secondary)
+                    .ok());
+    EXPECT_TRUE(
+        plain.value().updateBox(0, source, first, count, runtime::VolumeState::Secondary).ok());
+}
+
+} // namespace
