@@ -138,3 +138,17 @@ TEST(GridLayout, MakeRejectsBadFrame) {
             .code,
         ErrorCode::NonFinite);
 }
+
+// The asserted preconditions of the unchecked constructor (grid.hpp) fire in builds with
+// assertions (the Debug + sanitizer job of .ci/run); Release builds compile them out, which is
+// why untrusted values go through GridLayout::make.
+#ifndef NDEBUG
+TEST(GridLayoutDeathTest, UncheckedConstructorAssertsItsPreconditions) {
+    const grid::Aabb box{glm::vec3(0.0f), glm::vec3(1.0f)};
+    EXPECT_DEATH(grid::GridLayout(box, glm::uvec3(3, 4, 4), grid::PositionMode::Center),
+                 "validateResolution");
+    EXPECT_DEATH(grid::GridLayout({glm::vec3(1.0f), glm::vec3(0.0f)}, glm::uvec3(4),
+                                  grid::PositionMode::Center),
+                 "validateBounds");
+}
+#endif
