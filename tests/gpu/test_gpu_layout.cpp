@@ -195,3 +195,98 @@ TEST(GpuLayout, BrickAtlasSlotsArePowersOfTwoThatHoldEveryBrick) {
     EXPECT_EQ(runtime::brickAtlasSlot(5, {4, 2, 2}), glm::uvec3(1, 1, 0));
     EXPECT_EQ(runtime::brickAtlasSlot(13, {4, 2, 2}), glm::uvec3(1, 1, 1));
 }
+
+TEST(GpuLayout, VisibilityFlagAndBinding) {
+    // The flag is its own bit, set exactly when asked, with every other flag.
+    const Volume l2 = makeVolume({2, 2, 2}, grid::PositionMode::Center, sh::Order::L2,
+                                 Storage::Float32, {}, 0, 0.0f);
+    EXPECT_EQ(runtime::packVolumeGpu(l2.desc, 0.0f).resolution.w, PK_VOLUME_FLAG_L2);
+    EXPECT_EQ(runtime::packVolumeGpu(l2.desc, 0.5f, glm::uvec3(0u), true).resolution.w,
+              PK_VOLUME_FLAG_L2 | PK_VOLUME_FLAG_BLEND | PK_VOLUME_FLAG_VISIBILITY);
+    VolumeDesc bricked = l2.desc;
+    bricked.layout = VolumeLayout::Bricked;
+    bricked.bricks = brick::uniformLayout(bricked.grid.resolution(), 0);
+    const gpu::PkVolumeGpu packed = runtime::packVolumeGpu(bricked, 0.0f, {2, 2, 2}, true);
+    EXPECT_EQ(packed.resolution.w,
+              PK_VOLUME_FLAG_L2 | PK_VOLUME_FLAG_BRICKED | PK_VOLUME_FLAG_VISIBILITY);
+    // In a set, per volume.
+    const std::vector<VolumeDesc> descs{l2.desc, l2.desc, l2.desc};
+    const std::vector<float> blends(3, 0.0f);
+    const std::vector<uint8_t> visibility{0, 1, 0};
+    const gpu::PkVolumeSetGpu set = runtime::packVolumeSetGpu(descs, blends, 0.0f, {}, visibility);
+    EXPECT_EQ(set.volumes[0].resolution.w & PK_VOLUME_FLAG_VISIBILITY, 0u);
+    EXPECT_EQ(set.volumes[1].resolution.w & PK_VOLUME_FLAG_VISIBILITY, PK_VOLUME_FLAG_VISIBILITY);
+    EXPECT_EQ(set.volumes[2].resolution.w & PK_VOLUME_FLAG_VISIBILITY, 0u);
+    EXPECT_EQ(runtime::packVolumeSetGpu(descs, blends, 0.0f).volumes[1].resolution.w &
+                  PK_VOLUME_FLAG_VISIBILITY,
+              0u);
+    // Visibility shares the integer images (PK_MAX_VOLUMES explains why): the set stays at 120
+    // sampled images, and with its uniform buffer and the renderer's 7 descriptors within
+    // lavapipe's maxPerStageResources of 128.
+    EXPECT_EQ(PK_BINDING_VISIBILITY, PK_BINDING_INDIRECTION);
+    EXPECT_EQ(PK_SAMPLED_IMAGES, 120);
+    EXPECT_LE(PK_SAMPLED_IMAGES + 1 + 7, 128);
+    // The shader's constants are the CPU sampler's.
+    EXPECT_EQ(float(PK_VISIBILITY_RAMP), visibility::kRamp);
+    EXPECT_EQ(float(PK_VISIBILITY_FLOOR), visibility::kFloor);
+    EXPECT_NE(PK_VISIBILITY_OFF, PK_VISIBILITY_BRANCH);
+    EXPECT_NE(PK_VISIBILITY_BRANCH, PK_VISIBILITY_TAPS);
+}
+
+TEST(GpuLayout, VisibilityTexelsArePerProbeBytesThenZeros) {
+    Volume v = makeVolume({4, 2, 8}, grid::PositionMode::Center, sh::Order::L1, Storage::Float16,
+                          {}, 0, 0.0f);
+    std::mt19937 rng(9);
+    std::uniform_int_distribution<int> byte(0, 255);
+    v.visibility.resize(v.probeCount() * visibility::kBytesPerProbe);
+    for (uint8_t& q : v.visibility) {
+        q = uint8_t(byte(rng));
+    }
+    ASSERT_TRUE(validateVolume(v).ok());
+    const glm::uvec3 first(1, 0, 2);
+    const glm::uvec3 count(2, 2, 3);
+    std::vector<uint8_t> bytes(runtime::visibilityBoxBytes(count));
+    ASSERT_EQ(bytes.size(), size_t(12) * runtime::kVisibilityTexelBytes);
+    runtime::packVisibilityBox(v, first, count, bytes);
+    size_t at = 0;
+    for (uint32_t z = 0; z < count.z; ++z) {
+        for (uint32_t y = 0; y < count.y; ++y) {
+            for (uint32_t x = 0; x < count.x; ++x) {
+                const size_t probe = v.desc.grid.linearIndex(first + glm::uvec3(x, y, z));
+                const uint8_t* q = &v.visibility[probe * visibility::kBytesPerProbe];
+                const uint8_t* texel = bytes.data() + at;
+                EXPECT_EQ(std::memcmp(texel, q, 6), 0);
+                EXPECT_EQ(texel[6], 0);
+                EXPECT_EQ(texel[7], 0);
+                // Read as RG32_UINT (what the shader fetches) and as RGBA16_UINT: the same
+                // memory, (q0 | q1 << 8 | q2 << 16 | q3 << 24, q4 | q5 << 8) and
+                // (q0 | q1 << 8, q2 | q3 << 8, q4 | q5 << 8, 0).
+                uint32_t rg[2];
+                uint16_t rgba[4];
+                std::memcpy(rg, texel, 8);
+                std::memcpy(rgba, texel, 8);
+                EXPECT_EQ(rg[0], uint32_t(q[0]) | uint32_t(q[1]) << 8 | uint32_t(q[2]) << 16 |
+                                     uint32_t(q[3]) << 24);
+                EXPECT_EQ(rg[1], uint32_t(q[4]) | uint32_t(q[5]) << 8);
+                for (int c = 0; c < 3; ++c) {
+                    EXPECT_EQ(rgba[c], uint16_t(q[2 * c] | q[2 * c + 1] << 8));
+                }
+                EXPECT_EQ(rgba[3], 0u);
+                // pk_probe_visibility's byte selection: half-axis 2 a + side, side 0 for a
+                // positive offset along the axis, 1 otherwise.
+                const auto pick = [&](int axis, float o) {
+                    const uint32_t shift = (axis == 1 ? 16u : 0u) + (o > 0.0f ? 0u : 8u);
+                    return uint8_t((rg[axis == 2 ? 1 : 0] >> shift) & 255u);
+                };
+                for (int axis = 0; axis < 3; ++axis) {
+                    EXPECT_EQ(pick(axis, 0.25f), q[2 * axis]);
+                    EXPECT_EQ(pick(axis, -0.25f), q[2 * axis + 1]);
+                }
+                at += runtime::kVisibilityTexelBytes;
+            }
+        }
+    }
+    // A bricked volume's integer image: the indirection, the visibility atlas above it.
+    EXPECT_EQ(runtime::brickedIntegerExtent({16, 8, 16}, {4, 2, 2}), glm::uvec3(16, 8, 24));
+    EXPECT_EQ(runtime::brickedIntegerExtent({4, 2, 4}, {4, 4, 2}), glm::uvec3(16, 16, 12));
+}

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -528,6 +529,164 @@ TEST_F(Renderer, DynamicUpdatesShowInTheNextFrameOnly) {
     checkPixels(after.value(), kIrradianceRelative, "after_blend",
                 [&](glm::vec3 p, glm::vec3 n) { return cpu_after.irradiance(p, n); });
     EXPECT_EQ(before.value().color, back.value().color) << "blend 0 restores the first state";
+}
+
+// Visibility bytes hiding some probes strongly (as test_gpu_sampler.cpp's addVisibility): 15% of
+// the probes 0 on every half-axis, the others per half-axis 255 a quarter of the time, else a
+// random distance.
+void addVisibility(Volume& volume, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    std::uniform_int_distribution<int> byte(0, 255);
+    volume.visibility.assign(volume.probeCount() * visibility::kBytesPerProbe, 0);
+    for (size_t probe = 0; probe < volume.probeCount(); ++probe) {
+        const bool hidden = unit(rng) < 0.15f;
+        for (size_t h = 0; h < visibility::kBytesPerProbe; ++h) {
+            volume.visibility[probe * visibility::kBytesPerProbe + h] =
+                hidden ? 0 : (unit(rng) < 0.25f ? visibility::kClear : uint8_t(byte(rng)));
+        }
+    }
+    ASSERT_TRUE(validateVolume(volume).ok());
+}
+
+// A bricked volume (identity frame, mixed levels) over `bounds`, by default the plane volume's.
+Volume brickedPlaneVolume(const ProbeFunction& field,
+                          grid::Aabb bounds = {glm::vec3(-2.0f, -1.0f, -2.0f),
+                                               glm::vec3(2.0f, 1.0f, 2.0f)}) {
+    VolumeDesc desc;
+    desc.name = "bricked";
+    desc.grid = grid::GridLayout(bounds, glm::uvec3(2, 1, 2), grid::PositionMode::Center, {});
+    desc.layout = VolumeLayout::Bricked;
+    desc.bricks = bricktest::mixedLayout(glm::uvec3(2, 1, 2));
+    return bricktest::makeBrickedVolume(desc, field, true);
+}
+
+TEST_F(Renderer, LeakViewIsTheVisibleShare) {
+    // The leak view is (1, v, v) with v = runtime::visibleWeight at the pixel's position (one
+    // volume covering the plane, so the blend is that volume's share). The share is a sum of
+    // eight products of weights in [0, 1]: float rounding and the ~1e-6 cell coordinate
+    // difference on a 1/32-cell ramp keep GPU and CPU within 1e-3 absolute (the float
+    // tolerance of the sampler tests at scale 1).
+    constexpr float kShareAbsolute = 1e-3f;
+    std::vector<RenderVertex> vertices;
+    std::vector<uint32_t> indices;
+    planeMesh(vertices, indices);
+    ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+    FrameSettings settings = planeView(96, 64);
+    settings.view = RenderView::Leak;
+    const ProbeFunction field = skyAndLight({0.3f, 0.4f, 0.6f}, {0.3f, 1.5f, -0.4f}, 4.0f);
+    for (bool bricked : {false, true}) {
+        const std::string name = bricked ? "leak_view_bricked" : "leak_view_dense";
+        Volume volume =
+            bricked ? brickedPlaneVolume(field) : makeTestVolume(planeVolumeSpec(), field);
+        addVisibility(volume, bricked ? 7 : 5);
+        Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), std::vector<Volume>{volume});
+        ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+        Result<Frame> frame = renderer().render(gpu.value(), settings);
+        ASSERT_TRUE(frame.ok()) << frame.error().message;
+        size_t covered = 0;
+        size_t hidden = 0;
+        size_t partial = 0;
+        size_t failures = 0;
+        float worst = 0.0f;
+        for (size_t i = 0; i < frame.value().color.size(); ++i) {
+            if (frame.value().position[i].w == 0.0f) {
+                continue;
+            }
+            ++covered;
+            const float v = runtime::visibleWeight(volume, glm::vec3(frame.value().position[i]));
+            const glm::vec4 c = frame.value().color[i];
+            const float error =
+                std::max({std::abs(c.x - 1.0f), std::abs(c.y - v), std::abs(c.z - v)});
+            worst = std::max(worst, error);
+            failures += error <= kShareAbsolute ? 0 : 1;
+            hidden += v < 0.5f ? 1 : 0;
+            partial += v > 0.05f && v < 0.95f ? 1 : 0;
+        }
+        std::printf("[ figures  ] %s: %zu pixels, %zu with share < 0.5, %zu in (0.05, 0.95), "
+                    "max |GPU - CPU| %.3g (tolerance %.0e)\n",
+                    name.c_str(), covered, hidden, partial, double(worst), double(kShareAbsolute));
+        EXPECT_GT(covered, size_t(96 * 64 / 4));
+        // Not vacuous: hidden taps, and shares between the extremes.
+        EXPECT_GT(hidden, covered / 50) << name << ": the bytes hide too little to test";
+        EXPECT_GT(partial, covered / 50) << name << ": too few partial shares to test";
+        if (failures > 0) {
+            const std::string path = failureOutputPath(name + ".pfm");
+            writePfm(path, frame.value());
+            ADD_FAILURE() << name << ": " << failures << " pixels off (worst " << worst
+                          << "); image in " << path;
+        }
+        // Without visibility the share is 1: white.
+        Result<GpuVolumeSet> plain = GpuVolumeSet::create(context(), std::vector<Volume>{[&] {
+                                                              Volume v = volume;
+                                                              v.visibility.clear();
+                                                              return v;
+                                                          }()});
+        ASSERT_TRUE(plain.ok());
+        Result<Frame> white = renderer().render(plain.value(), settings);
+        ASSERT_TRUE(white.ok());
+        for (size_t i = 0; i < white.value().color.size(); ++i) {
+            if (white.value().position[i].w != 0.0f) {
+                ASSERT_EQ(white.value().color[i], glm::vec4(1.0f)) << name << " pixel " << i;
+            }
+        }
+    }
+}
+
+TEST_F(Renderer, IrradianceWithVisibilityMatchesTheCpuSampler) {
+    // Sets with visibility are shaded by the renderer's visibility pipelines (every volume tap
+    // by tap on CPU devices): a dense volume with visibility under a bricked one with visibility
+    // of higher priority and a fade, and a small dense one without (its taps weigh 1).
+    std::vector<RenderVertex> vertices;
+    std::vector<uint32_t> indices;
+    planeMesh(vertices, indices);
+    ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+    Volume dense = makeTestVolume(planeVolumeSpec(),
+                                  skyAndLight({0.3f, 0.4f, 0.6f}, {0.3f, 1.5f, -0.4f}, 4.0f));
+    addVisibility(dense, 11);
+    // Over part of the plane, its fade band across it.
+    Volume bricked =
+        brickedPlaneVolume(skyAndLight({0.5f, 0.3f, 0.2f}, {-0.4f, 1.2f, 0.5f}, 3.0f),
+                           {glm::vec3(-1.2f, -1.0f, -1.2f), glm::vec3(0.8f, 1.0f, 0.8f)});
+    bricked.desc.blendPriority = 1;
+    bricked.desc.fadeDistance = 0.4f;
+    addVisibility(bricked, 12);
+    VolumeSpec small = planeVolumeSpec();
+    small.bounds = {glm::vec3(0.2f, -0.5f, -0.8f), glm::vec3(1.0f, 0.5f, 0.4f)};
+    small.resolution = glm::uvec3(4, 4, 4);
+    small.priority = 2;
+    small.fade = 0.2f;
+    const Volume plain =
+        makeTestVolume(small, skyAndLight({0.1f, 0.2f, 0.1f}, {0.5f, 1.0f, 0.0f}, 2.0f));
+    const std::vector<Volume> volumes{dense, bricked, plain};
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+    const VolumeSet cpu(volumes);
+    FrameSettings settings = planeView(96, 64);
+    settings.view = RenderView::Irradiance;
+    Result<Frame> frame = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(frame.ok()) << frame.error().message;
+    checkPixels(frame.value(), kIrradianceRelative, "plane_irradiance_visibility",
+                [&](glm::vec3 p, glm::vec3 n) { return cpu.irradiance(p, n); });
+    // Not vacuous: visibility moves the result.
+    std::vector<Volume> without = volumes;
+    for (Volume& v : without) {
+        v.visibility.clear();
+    }
+    const VolumeSet cpu_without(without);
+    size_t changed = 0;
+    size_t covered = 0;
+    for (size_t i = 0; i < frame.value().color.size(); ++i) {
+        if (frame.value().position[i].w == 0.0f) {
+            continue;
+        }
+        ++covered;
+        const glm::vec3 p(frame.value().position[i]);
+        const glm::vec3 n = glm::normalize(glm::vec3(frame.value().normal[i]));
+        const glm::vec3 e = cpu.irradiance(p, n);
+        changed += maxAbs(e - cpu_without.irradiance(p, n)) > 0.05f * maxAbs(e) ? 1 : 0;
+    }
+    EXPECT_GT(changed, covered / 20) << "visibility changes too few pixels to test";
 }
 
 TEST_F(Renderer, TimesEachPass) {
