@@ -211,8 +211,8 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
     choice.band2 = std::sqrt(std::max(
         0.0, band2 / reference2 - 5.0 / 9.0 * 0.5 * choice.pilotNoise * choice.pilotNoise));
 
-    const double noise_budget = 0.6 * target;
-    choice.shOrder = choice.band2 < 0.4 * target ? sh::Order::L1 : sh::Order::L2;
+    const double noise_budget = kTargetNoiseShare * target;
+    choice.shOrder = choice.band2 < kTargetBand2Share * target ? sh::Order::L1 : sh::Order::L2;
     const double sh_error = choice.shOrder == sh::Order::L1 ? choice.band2 : 0.0;
     // Trilinear interpolation averages 8 probes: over uniform positions the noise variance
     // falls to (2/3)^3 of one probe's.
@@ -224,7 +224,7 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
                                                           kInterpolatedVariance);
     choice.interpolationBudget = std::sqrt(std::max(
         target * target - choice.predictedNoise * choice.predictedNoise - sh_error * sh_error,
-        0.04 * target * target));
+        kTargetMinInterpolation * kTargetMinInterpolation * target * target));
 
     if (base.method == "path") {
         choice.config.path.samples = choice.samples;

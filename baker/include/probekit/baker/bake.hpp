@@ -58,10 +58,11 @@ struct VolumeConfig {
     // round_pow2(size * density / 3) (a brick spans 3 probe spacings).
     VolumeLayout layout = VolumeLayout::Dense;
     uint32_t maxLevel = 2; // bricked: finer levels allowed over level 0 (0..3), each 2x denser
-    // Bricked: a level-0 brick is split into 8 finer bricks when its interpolation at the
-    // finer probes disagrees with their baked irradiance by more than this fraction of the
-    // volume's RMS irradiance (RMS over the brick); a level-l brick when it disagrees by more
-    // than sqrt(8)^l times this (equal shares of the volume's squared error; bricked.hpp).
+    // Bricked: an octant of a level-0 brick gets its own finer brick when the brick's
+    // interpolation at the octant's finer probes disagrees with their baked irradiance by more
+    // than this fraction of the volume's RMS irradiance (RMS over the octant); at level l when
+    // it disagrees by more than sqrt(8)^l times this (equal shares of the volume's squared
+    // error; bricked.hpp). Octants that do not gain keep the coarser brick.
     float refineError = 0.05f;
 };
 
@@ -318,15 +319,21 @@ struct TargetChoice {
     double interpolationBudget = 0.0; // refine_error given to the bricked volumes
     double pilotSeconds = 0.0;
 };
+// The error budget of chooseSettings, as fractions of the target t.
+constexpr double kTargetNoiseShare = 0.6;       // interpolated Monte Carlo noise
+constexpr double kTargetBand2Share = 0.4;       // SH band 2 may be dropped (L1) below this
+constexpr double kTargetMinInterpolation = 0.2; // interpolation's share never falls below this
+
 // Chooses settings so that the bake's error against a converged path reference is about
-// `target`: every volume becomes bricked (levels 3) with refine_error from the error budget and
-// level-0 bricks from the density rule with the spacing scaled by sqrt(target / 0.05) (the
+// `target` t: every volume becomes bricked (levels 3) with refine_error from the error budget
+// and level-0 bricks from the density rule with the spacing scaled by sqrt(t / 0.05) (the
 // smooth light level 0 covers has trilinear error growing with the square of the spacing);
-// SH order L1 where band 2 carries less than 0.4 x target; the sample count so that the
-// interpolated Monte Carlo noise is half the target (from a pilot of two independent
-// estimates at 64 points). Budget: noise 0.5 t, band 2 (if dropped) <= 0.4 t, interpolation
-// the rest, times 0.9. For methods vpl and lpv the count chosen is their direct-light samples;
-// their own bias (VPL clamping, LPV propagation) is not modelled.
+// SH order L1 where band 2 carries less than kTargetBand2Share x t; the sample count so that
+// the interpolated Monte Carlo noise is kTargetNoiseShare x t (from a pilot of two independent
+// estimates at 64 points); interpolation gets the rest in quadrature,
+// sqrt(t^2 - noise^2 - band2^2), but at least kTargetMinInterpolation x t. For methods vpl and
+// lpv the count chosen is their direct-light samples; their own bias (VPL clamping, LPV
+// propagation) is not modelled.
 Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, double target,
                                     uint32_t threads = 0);
 
