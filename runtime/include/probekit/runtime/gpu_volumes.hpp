@@ -163,8 +163,9 @@ public:
     // unused slots included, plus the u32 indirection) and of the integer images (indirection
     // and visibility: for a bricked volume with visibility its whole image, 8 bytes a texel).
     size_t texelBytes() const;
-    // Texel bytes copied to the GPU since creation (initial uploads included): moving a volume
-    // or changing a blend factor leaves it unchanged.
+    // Bytes copied to the GPU since creation (initial uploads included): texels, and for the
+    // primary state the integer images' data (indirection entries, visibility texels); moving a
+    // volume or changing a blend factor leaves it unchanged.
     size_t uploadedBytes() const;
 
     VkDescriptorSetLayout descriptorSetLayout() const;
