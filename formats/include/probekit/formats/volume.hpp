@@ -109,8 +109,10 @@ struct Volume {
         return texelBytes() + indirection.size() * sizeof(uint32_t) + visibilityGpuBytes();
     }
     bool hasVisibility() const { return !visibility.empty(); }
-    // Bytes the runtime uploads for the visibility: one RGBA16_UINT texel (8 bytes) per probe
-    // (runtime::GpuVolumeSet), 0 without visibility data.
+    // Bytes of the visibility on the GPU: 8 per probe (one RG32_UINT texel, runtime::
+    // GpuVolumeSet), 0 without visibility data. For a bricked volume this is a lower bound:
+    // the runtime's atlas has power-of-two slot counts (up to twice the bricks) and shares its
+    // image with the indirection (GpuVolumeSet::texelBytes reports the allocation).
     size_t visibilityGpuBytes() const { return hasVisibility() ? probeCount() * 8 : 0; }
     size_t validCount() const;
 
