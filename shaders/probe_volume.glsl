@@ -145,18 +145,24 @@ bool pk_is_bricked(uint s) {
     return (pk_volume_set.volumes[s].resolution.w & PK_VOLUME_FLAG_BRICKED) != 0u;
 }
 
-// The indirection entry of finest cell c of slot s (one case per slot: constant indices).
-uint pk_indirection_entry(uint s, ivec3 c) {
+// The texel at c of slot s's integer image (one case per slot: constant indices): x is the
+// bricked indirection entry, xy a visibility texel (probe_volume_layout.h).
+uvec2 pk_integer_texel(uint s, ivec3 c) {
     switch (s) {
-    case 0: return texelFetch(pk_indirection[0], c, 0).x;
-    case 1: return texelFetch(pk_indirection[1], c, 0).x;
-    case 2: return texelFetch(pk_indirection[2], c, 0).x;
-    case 3: return texelFetch(pk_indirection[3], c, 0).x;
-    case 4: return texelFetch(pk_indirection[4], c, 0).x;
-    case 5: return texelFetch(pk_indirection[5], c, 0).x;
-    case 6: return texelFetch(pk_indirection[6], c, 0).x;
-    default: return texelFetch(pk_indirection[7], c, 0).x;
+    case 0: return texelFetch(pk_indirection[0], c, 0).xy;
+    case 1: return texelFetch(pk_indirection[1], c, 0).xy;
+    case 2: return texelFetch(pk_indirection[2], c, 0).xy;
+    case 3: return texelFetch(pk_indirection[3], c, 0).xy;
+    case 4: return texelFetch(pk_indirection[4], c, 0).xy;
+    case 5: return texelFetch(pk_indirection[5], c, 0).xy;
+    case 6: return texelFetch(pk_indirection[6], c, 0).xy;
+    default: return texelFetch(pk_indirection[7], c, 0).xy;
     }
+}
+
+// The indirection entry of finest cell c of slot s.
+uint pk_indirection_entry(uint s, ivec3 c) {
+    return pk_integer_texel(s, c).x;
 }
 
 // Atlas texture coordinate of brick-local coordinates l (in [0, 3]) of brick `index`: texel
@@ -221,19 +227,9 @@ bool pk_has_visibility(uint s) {
            (pk_volume_set.volumes[s].resolution.w & PK_VOLUME_FLAG_VISIBILITY) != 0u;
 }
 
-// The visibility texel at integer-image texel c of slot s: x = q0..q3, y = q4, q5 (one case per
-// slot: constant indices).
+// The visibility texel at integer-image texel c of slot s: x = q0..q3, y = q4, q5.
 uvec2 pk_visibility_texel(uint s, ivec3 c) {
-    switch (s) {
-    case 0: return texelFetch(pk_indirection[0], c, 0).xy;
-    case 1: return texelFetch(pk_indirection[1], c, 0).xy;
-    case 2: return texelFetch(pk_indirection[2], c, 0).xy;
-    case 3: return texelFetch(pk_indirection[3], c, 0).xy;
-    case 4: return texelFetch(pk_indirection[4], c, 0).xy;
-    case 5: return texelFetch(pk_indirection[5], c, 0).xy;
-    case 6: return texelFetch(pk_indirection[6], c, 0).xy;
-    default: return texelFetch(pk_indirection[7], c, 0).xy;
-    }
+    return pk_integer_texel(s, c);
 }
 
 // vis_i of one probe (its visibility texel q) at grid offset o. Mirrors

@@ -45,6 +45,18 @@ float dc(const sh::ShRgb& s) {
     return s.rgb[0].x;
 }
 
+// A float bricked volume's description over a 2 x 2 x 1 m box.
+VolumeDesc brickedDesc(glm::uvec3 top, brick::BrickLayout layout) {
+    VolumeDesc desc;
+    desc.name = "bricked";
+    desc.grid = grid::GridLayout({glm::vec3(-1.0f, 0.5f, -3.0f), glm::vec3(2.0f, 2.0f, 1.0f)}, top,
+                                 grid::PositionMode::Center);
+    desc.layout = VolumeLayout::Bricked;
+    desc.bricks = std::move(layout);
+    desc.storage = Storage::Float32;
+    return desc;
+}
+
 } // namespace
 
 TEST(VisibilityBytes, EncodeDecode) {
@@ -130,13 +142,7 @@ TEST(SamplerVisibility, ClearBytesAreTrilinearOnDenseAndBricked) {
     // Every byte 255 (no surface within a cell): the same as no visibility data, at points
     // spread through the volume (and outside it, where clamping applies).
     const glm::uvec3 top(2, 1, 2);
-    VolumeDesc desc;
-    desc.name = "bricked";
-    desc.grid = grid::GridLayout({glm::vec3(-1.0f, 0.5f, -3.0f), glm::vec3(2.0f, 2.0f, 1.0f)}, top,
-                                 grid::PositionMode::Center);
-    desc.layout = VolumeLayout::Bricked;
-    desc.bricks = bricktest::nestedLayout(top);
-    desc.storage = Storage::Float32;
+    const VolumeDesc desc = brickedDesc(top, bricktest::nestedLayout(top));
     size_t counter = 0;
     const Volume plain = bricktest::makeBrickedVolume(
         desc,
@@ -163,13 +169,7 @@ TEST(SamplerVisibility, BrickedEqualsBrickInterpolateWithVisibility) {
     // The sampler's bricked path and brick::interpolate (which stitching uses) are two
     // implementations of the same weights: they must agree, with random bytes hiding probes.
     const glm::uvec3 top(2, 1, 2);
-    VolumeDesc desc;
-    desc.name = "bricked";
-    desc.grid = grid::GridLayout({glm::vec3(-1.0f, 0.5f, -3.0f), glm::vec3(2.0f, 2.0f, 1.0f)}, top,
-                                 grid::PositionMode::Center);
-    desc.layout = VolumeLayout::Bricked;
-    desc.bricks = bricktest::mixedLayout(top);
-    desc.storage = Storage::Float32;
+    const VolumeDesc desc = brickedDesc(top, bricktest::mixedLayout(top));
     size_t counter = 0;
     Volume v = bricktest::makeBrickedVolume(
         desc,
