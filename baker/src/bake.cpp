@@ -438,8 +438,7 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
                             s.sh = lpvProbe(*lpv_cascades, config.lpv, p, s.sh);
                         }
                         out_sh[i] = s.sh;
-                        out_valid[i] = s.backFaceFraction > config.backfaceThreshold ? kProbeInvalid
-                                                                                     : kProbeValid;
+                        out_valid[i] = probeValidity(s, config.backfaceThreshold);
                         local_rays += s.rays;
                     }
                     probes_done.fetch_add(end - begin);

@@ -4,11 +4,11 @@
 #include <cassert>
 #include <cmath>
 #include <numbers>
-#include <thread>
 
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 
+#include "parallel.hpp"
 #include "rng.hpp"
 #include "sampling.hpp"
 
@@ -118,23 +118,12 @@ SparseTransfer sparseOf(const LpvTransfer::Matrix& m, int d) {
     return t;
 }
 
-// Runs body(begin, end) over [0, count) split into `threads` contiguous ranges. Every result a
-// body writes depends only on its own index, so the split never changes the output.
+// Runs body(begin, end) over [0, count) in about `threads` ranges (parallel.hpp). Every result
+// a body writes depends only on its own index, so the split never changes the output.
 template <class Body>
 void parallelRanges(size_t count, uint32_t threads, const Body& body) {
     const size_t workers = std::max<size_t>(1, std::min<size_t>(threads, count));
-    if (workers == 1) {
-        body(size_t(0), count);
-        return;
-    }
-    std::vector<std::thread> pool;
-    for (size_t t = 1; t < workers; ++t) {
-        pool.emplace_back([&, t] { body(count * t / workers, count * (t + 1) / workers); });
-    }
-    body(size_t(0), count / workers);
-    for (std::thread& th : pool) {
-        th.join();
-    }
+    parallelFor(count, uint32_t(workers), (count + workers - 1) / workers, body);
 }
 
 // Flux that crossed into each cell, summed over iterations: plane 3 d + ch for light travelling

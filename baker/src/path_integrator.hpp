@@ -40,6 +40,7 @@
 #include "light_sampler.hpp"
 #include "probekit/baker/scene.hpp"
 #include "probekit/formats/sh.hpp"
+#include "probekit/formats/volume.hpp"
 #include "ray_tracer.hpp"
 
 namespace probekit::baker {
@@ -62,6 +63,12 @@ struct ProbeSample {
     uint64_t rays;          // every ray traced: primary, continuation and shadow
     float nearFraction;     // primary rays that hit nearer than nearDistance / all
 };
+
+// The validity rule of every bake: a probe whose primary rays hit back faces more often than
+// `backface_threshold` (BakeConfig::backfaceThreshold) is inside geometry.
+inline uint8_t probeValidity(const ProbeSample& s, float backface_threshold) {
+    return s.backFaceFraction > backface_threshold ? kProbeInvalid : kProbeValid;
+}
 
 class PathIntegrator {
 public:

@@ -4,9 +4,9 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
-#include <thread>
 
 #include "irradiance_error.hpp"
+#include "parallel.hpp"
 #include "path_integrator.hpp"
 #include "probekit/baker/bake.hpp"
 #include "ray_tracer.hpp"
@@ -79,29 +79,16 @@ Result<PointBake> bakePoints(const Scene& scene, const BakeConfig& config,
     PointBake out;
     out.sh.resize(points.size());
     out.valid.resize(points.size());
-    std::atomic<size_t> next{0};
     std::atomic<uint64_t> rays{0};
-    auto worker = [&] {
-        uint64_t local_rays = 0;
-        for (size_t i = next.fetch_add(1); i < points.size(); i = next.fetch_add(1)) {
+    parallelFor(points.size(), threads, 1, [&](size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) {
             const ProbeSample s =
                 integrator.bakeProbe(points[i], config.seed, kReferenceVolumeIndex - stream, i);
             out.sh[i] = s.sh;
-            out.valid[i] =
-                s.backFaceFraction > config.backfaceThreshold ? kProbeInvalid : kProbeValid;
-            local_rays += s.rays;
+            out.valid[i] = probeValidity(s, config.backfaceThreshold);
+            rays.fetch_add(s.rays);
         }
-        rays.fetch_add(local_rays);
-    };
-    const uint32_t n = threads ? threads : std::max(1u, std::thread::hardware_concurrency());
-    std::vector<std::thread> pool;
-    for (uint32_t t = 1; t < n; ++t) {
-        pool.emplace_back(worker);
-    }
-    worker();
-    for (std::thread& t : pool) {
-        t.join();
-    }
+    });
     out.rays = rays.load();
     return out;
 }

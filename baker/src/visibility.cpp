@@ -1,12 +1,11 @@
 #include "visibility.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
-#include <thread>
 
 #include <glm/geometric.hpp>
 
+#include "parallel.hpp"
 #include "probekit/formats/brick.hpp"
 
 namespace probekit::baker {
@@ -84,36 +83,20 @@ std::vector<uint8_t> traceVolumeVisibility(const RayTracer& tracer, const Volume
     };
 
     std::vector<uint8_t> out(count * visibility::kBytesPerProbe, 0);
-    std::atomic<size_t> next{0};
-    auto worker = [&] {
+    parallelFor(count, threads, 16, [&](size_t begin, size_t end) {
         const ScopedFloatMode float_mode;
-        constexpr size_t kChunk = 16;
-        for (;;) {
-            const size_t begin = next.fetch_add(kChunk);
-            if (begin >= count) {
-                break;
+        for (size_t i = begin; i < end; ++i) {
+            if (!validity.empty() && validity[i] == kProbeInvalid) {
+                continue; // zeros: hidden everywhere but at the probe itself
             }
-            for (size_t i = begin; i < std::min(count, begin + kChunk); ++i) {
-                if (!validity.empty() && validity[i] == kProbeInvalid) {
-                    continue; // zeros: hidden everywhere but at the probe itself
-                }
-                glm::vec3 local, spacing;
-                probe_at(i, local, spacing);
-                const auto bytes = traceProbeVisibility(tracer, grid.frame().toWorld(local),
-                                                        spacing, grid.frame());
-                std::copy(bytes.begin(), bytes.end(),
-                          out.begin() + std::ptrdiff_t(i * visibility::kBytesPerProbe));
-            }
+            glm::vec3 local, spacing;
+            probe_at(i, local, spacing);
+            const auto bytes =
+                traceProbeVisibility(tracer, grid.frame().toWorld(local), spacing, grid.frame());
+            std::copy(bytes.begin(), bytes.end(),
+                      out.begin() + std::ptrdiff_t(i * visibility::kBytesPerProbe));
         }
-    };
-    std::vector<std::thread> pool;
-    for (uint32_t t = 1; t < std::max(1u, threads); ++t) {
-        pool.emplace_back(worker);
-    }
-    worker();
-    for (std::thread& t : pool) {
-        t.join();
-    }
+    });
     return out;
 }
 
