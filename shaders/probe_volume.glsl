@@ -499,6 +499,18 @@ void pk_coverage(vec3 p, out bool covered, out uint nearest) {
     }
 }
 
+// The share a = w * remaining of the i-th volume in blending order at p, with its slot s and
+// p in its local frame: w is its blend weight (pk_volume_weight) when some volume covers p,
+// else 1 for the nearest volume alone. The one blending rule of pk_irradiance,
+// pk_fetch_only and pk_visible_weight (runtime::VolumeSet::irradiance on the CPU).
+float pk_blend_share(uint i, vec3 p, bool covered, uint nearest, float remaining, out uint s,
+                     out vec3 local) {
+    s = pk_blend_slot(i);
+    local = pk_to_local(s, p);
+    const float w = covered ? pk_volume_weight(s, local) : (s == nearest ? 1.0 : 0.0);
+    return w * remaining;
+}
+
 // Irradiance E (W/m^2, not divided by pi) at world position p for a receiver with unit world
 // normal n, blended over every volume of the set. Mirrors, term for term,
 // probekit::runtime::VolumeSet::irradiance(p, n, normal_offset) (runtime/src/sampler.cpp), with
@@ -520,10 +532,9 @@ vec3 pk_irradiance(vec3 world_position, vec3 normal) {
     float weight_sum = 0.0;
     float remaining = 1.0;
     for (uint i = 0u; i < count; ++i) {
-        const uint s = pk_blend_slot(i);
-        const vec3 local = pk_to_local(s, p);
-        const float w = covered ? pk_volume_weight(s, local) : (s == nearest ? 1.0 : 0.0);
-        const float a = w * remaining;
+        uint s;
+        vec3 local;
+        const float a = pk_blend_share(i, p, covered, nearest, remaining, s, local);
         if (a > 0.0) {
             weighted_sum += a * pk_volume_irradiance(s, local, normal);
             weight_sum += a;
@@ -567,10 +578,9 @@ vec4 pk_fetch_only(vec3 world_position, vec3 normal) {
     vec4 sum = vec4(0.0);
     float remaining = 1.0;
     for (uint i = 0u; i < count; ++i) {
-        const uint s = pk_blend_slot(i);
-        const vec3 local = pk_to_local(s, p);
-        const float w = covered ? pk_volume_weight(s, local) : (s == nearest ? 1.0 : 0.0);
-        const float a = w * remaining;
+        uint s;
+        vec3 local;
+        const float a = pk_blend_share(i, p, covered, nearest, remaining, s, local);
         if (a > 0.0) {
             vec4 t[PK_MAX_PLANES];
             pk_volume_texels(s, local, t);
@@ -596,10 +606,9 @@ float pk_visible_weight(vec3 world_position, vec3 normal) {
     float weight_sum = 0.0;
     float remaining = 1.0;
     for (uint i = 0u; i < count; ++i) {
-        const uint s = pk_blend_slot(i);
-        const vec3 local = pk_to_local(s, p);
-        const float w = covered ? pk_volume_weight(s, local) : (s == nearest ? 1.0 : 0.0);
-        const float a = w * remaining;
+        uint s;
+        vec3 local;
+        const float a = pk_blend_share(i, p, covered, nearest, remaining, s, local);
         if (a > 0.0) {
             weighted_sum += a * pk_volume_visible_weight(s, local);
             weight_sum += a;
