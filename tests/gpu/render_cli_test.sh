@@ -73,8 +73,6 @@ expect 0 '"shade_no_visibility_ms":.*"shade_visibility_over_none":.*"visibility"
     "$pk" render cornell.gltf dense.pvol -o bv.png --size 32,24 --bench 2
 expect 0 '"visibility":false' -- "$pk" render cornell.gltf dense.pvol -o bn.png --size 32,24 \
     --bench 2 --no-visibility
-expect 0 '"visibility":true' -- "$pk" render cornell.gltf volume.pvol -o bt.png --size 32,24 \
-    --bench 2 --test-visibility 0.5
 expect 0 "no-visibility" -- "$pk" render --help
 
 expect 2 "png or .exr" -- "$pk" render cornell.gltf volume.pvol -o out.jpg

@@ -11,7 +11,6 @@
 #include <filesystem>
 #include <memory>
 #include <optional>
-#include <random>
 #include <string>
 #include <vector>
 
@@ -47,21 +46,7 @@ struct RenderOptions {
     bool directLight = false;
     float normalOffset = 0.0f;
     bool noVisibility = false;
-    float testVisibility = -1.0f; // hidden: < 0 off, else the share of hidden half-axes
 };
-
-// The hidden --test-visibility option (timing the visibility path before a volume has baked
-// visibility): every probe's six half-axes get a deterministic pseudo-random distance byte in
-// 0..254 with probability `share`, else visibility::kClear.
-void fillTestVisibility(Volume& volume, float share) {
-    std::mt19937 rng(12345);
-    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
-    std::uniform_int_distribution<int> byte(0, 254);
-    volume.visibility.resize(volume.probeCount() * visibility::kBytesPerProbe);
-    for (uint8_t& q : volume.visibility) {
-        q = unit(rng) < share ? uint8_t(byte(rng)) : visibility::kClear;
-    }
-}
 
 std::string extensionOf(const std::string& path) {
     std::string ext = std::filesystem::path(path).extension().string();
@@ -210,8 +195,6 @@ int runRender(const RenderOptions& o) {
     for (Volume& v : volumes) {
         if (o.noVisibility) {
             v.visibility.clear(); // plain trilinear interpolation
-        } else if (o.testVisibility >= 0.0f) {
-            fillTestVisibility(v, o.testVisibility);
         }
     }
     const bool any_visibility = std::any_of(volumes.begin(), volumes.end(),
@@ -468,10 +451,6 @@ void addRenderCommand(CLI::App& app, Command& selected) {
     cmd->add_flag("--no-visibility", o->noVisibility,
                   "drop the volumes' visibility data before upload: plain trilinear "
                   "interpolation, as for volumes baked without it (compare with and without)");
-    // Hidden: synthetic visibility for timing the visibility path on volumes without any.
-    cmd->add_option("--test-visibility", o->testVisibility)
-        ->check(CLI::Range(0.0f, 1.0f))
-        ->group("");
     cmd->add_flag("--direct-light", o->directLight,
                   "add unshadowed direct light from the scene's punctual lights (for volumes "
                   "baked without it)");
