@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <random>
 
 #include <glm/geometric.hpp>
 
@@ -134,6 +135,21 @@ ProbeFunction skyAndLight(glm::vec3 sky, glm::vec3 light, float intensity) {
         s.rgb[0] += sky * (2.0f * std::sqrt(sh::kPi));
         return s;
     };
+}
+
+void addVisibility(Volume& volume, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+    std::uniform_int_distribution<int> byte(0, 255);
+    volume.visibility.assign(volume.probeCount() * visibility::kBytesPerProbe, 0);
+    for (size_t probe = 0; probe < volume.probeCount(); ++probe) {
+        const bool hidden = unit(rng) < 0.15f;
+        for (size_t h = 0; h < visibility::kBytesPerProbe; ++h) {
+            volume.visibility[probe * visibility::kBytesPerProbe + h] =
+                hidden ? 0 : (unit(rng) < 0.25f ? visibility::kClear : uint8_t(byte(rng)));
+        }
+    }
+    ASSERT_TRUE(validateVolume(volume).ok());
 }
 
 } // namespace probekit::gputest

@@ -77,4 +77,9 @@ Volume makeTestVolume(const VolumeSpec& spec, const ProbeFunction& field, size_t
 // intensity `intensity` (W/sr) at `light` (exact SH of a directional delta, as probekit synth).
 ProbeFunction skyAndLight(glm::vec3 sky, glm::vec3 light, float intensity);
 
+// Visibility bytes that hide some probes strongly: 15% of the probes get 0 on every half-axis
+// (hidden from every point of their cells beyond 1/32 cell), the others per half-axis 255 (no
+// surface within a cell) a quarter of the time, else a random distance. Deterministic in `seed`.
+void addVisibility(Volume& volume, uint32_t seed);
+
 } // namespace probekit::gputest

@@ -786,27 +786,6 @@ namespace {
 // quaternion) moves a tap's weight by ~3e-5 of it, and normalising by a small weight sum (every
 // tap hidden but one, partly) can enlarge that: the measured maxima are printed.
 
-// Visibility bytes that hide some probes strongly: 15% of the probes get 0 on every half-axis
-// (hidden from every point of their cells beyond 1/32 cell), the others per half-axis 255 (no
-// surface within a cell) a quarter of the time, else a random distance.
-void addVisibility(Volume& volume, uint32_t seed) {
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
-    std::uniform_int_distribution<int> byte(0, 255);
-    volume.visibility.assign(volume.probeCount() * visibility::kBytesPerProbe, 0);
-    for (size_t probe = 0; probe < volume.probeCount(); ++probe) {
-        const bool hidden = unit(rng) < 0.15f;
-        for (size_t h = 0; h < visibility::kBytesPerProbe; ++h) {
-            uint8_t q = 0;
-            if (!hidden) {
-                q = unit(rng) < 0.25f ? visibility::kClear : uint8_t(byte(rng));
-            }
-            volume.visibility[probe * visibility::kBytesPerProbe + h] = q;
-        }
-    }
-    ASSERT_TRUE(validateVolume(volume).ok());
-}
-
 Volume withVisibility(Volume volume, uint32_t seed) {
     addVisibility(volume, seed);
     return volume;

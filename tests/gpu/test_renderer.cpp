@@ -531,24 +531,6 @@ TEST_F(Renderer, DynamicUpdatesShowInTheNextFrameOnly) {
     EXPECT_EQ(before.value().color, back.value().color) << "blend 0 restores the first state";
 }
 
-// Visibility bytes hiding some probes strongly (as test_gpu_sampler.cpp's addVisibility): 15% of
-// the probes 0 on every half-axis, the others per half-axis 255 a quarter of the time, else a
-// random distance.
-void addVisibility(Volume& volume, uint32_t seed) {
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<float> unit(0.0f, 1.0f);
-    std::uniform_int_distribution<int> byte(0, 255);
-    volume.visibility.assign(volume.probeCount() * visibility::kBytesPerProbe, 0);
-    for (size_t probe = 0; probe < volume.probeCount(); ++probe) {
-        const bool hidden = unit(rng) < 0.15f;
-        for (size_t h = 0; h < visibility::kBytesPerProbe; ++h) {
-            volume.visibility[probe * visibility::kBytesPerProbe + h] =
-                hidden ? 0 : (unit(rng) < 0.25f ? visibility::kClear : uint8_t(byte(rng)));
-        }
-    }
-    ASSERT_TRUE(validateVolume(volume).ok());
-}
-
 // A bricked volume (identity frame, mixed levels) over `bounds`, by default the plane volume's.
 Volume brickedPlaneVolume(const ProbeFunction& field,
                           grid::Aabb bounds = {glm::vec3(-2.0f, -1.0f, -2.0f),
