@@ -17,6 +17,7 @@
 #include "lpv_method.hpp"
 #include "path_integrator.hpp"
 #include "probekit/baker/bake.hpp"
+#include "probekit/baker/settings.hpp"
 #include "ray_tracer.hpp"
 #include "visibility.hpp"
 #include "vpl_gather.hpp"
@@ -322,9 +323,8 @@ uint64_t estimateBakeMemory(const std::vector<VolumeDesc>& volumes) {
 
 Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const BakeOptions& options) {
     const auto start = std::chrono::steady_clock::now();
-    if (config.method != "path" && config.method != "vpl" && config.method != "lpv") {
-        return makeError(ErrorCode::InvalidArgument,
-                         "method: \"" + config.method + "\" is not available in this build");
+    if (Result<void> valid = validateBakeConfig(config); !valid) {
+        return valid.error();
     }
     Result<std::vector<VolumeDesc>> descs = resolveVolumes(scene, config);
     if (!descs) {
@@ -352,7 +352,7 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     // it on top of the direct light the path integrator computes with no bounce.
     std::optional<VplConfig> vpl_config;
     std::optional<VplGatherer> vpl_gatherer;
-    if (config.method == "vpl") {
+    if (config.method == Method::Vpl) {
         vpl_config = resolveVplConfig(scene, descs.value(), config);
         VplSet set = traceVpls(
             scene, *tracer.value(),
@@ -370,7 +370,7 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     // Method lpv: the lights the grids carry, once for the whole bake; each volume then
     // propagates its own cascades and every probe adds them to its direct light.
     std::optional<LpvLights> lpv_lights;
-    if (config.method == "lpv") {
+    if (config.method == Method::Lpv) {
         lpv_lights = prepareLpvLights(scene, *tracer.value(), config.lpv, descs.value(),
                                       config.seed, result.stats.threads);
         rays.fetch_add(lpv_lights->rays);
@@ -554,7 +554,7 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
 
     BakeMetadata& m = result.file.metadata;
     m.toolVersion = "probekit " PROBEKIT_VERSION_STRING;
-    m.method = config.method;
+    m.method = std::string(toString(config.method));
     BakeConfig resolved = config;
     if (resolved.volumes.empty()) {
         resolved.volumes.push_back(VolumeConfig{});

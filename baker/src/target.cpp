@@ -213,9 +213,9 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
         target * target - choice.predictedNoise * choice.predictedNoise - sh_error * sh_error,
         kTargetMinInterpolation * kTargetMinInterpolation * target * target));
 
-    if (base.method == "path") {
+    if (base.method == Method::Path) {
         choice.config.path.samples = choice.samples;
-    } else if (base.method == "vpl") {
+    } else if (base.method == Method::Vpl) {
         choice.config.vpl.directSamples = choice.samples;
     } else {
         choice.config.lpv.directSamples = choice.samples;

@@ -145,7 +145,7 @@ TEST(LpvThinWall, OcclusionCutsTheLeakAtLeastInHalf) {
     ASSERT_GT(e_path, 0.0);
 
     BakeConfig lpv;
-    lpv.method = "lpv";
+    lpv.method = Method::Lpv;
     lpv.volumes = {line};
     Result<BakeResult> on = bake(scene, lpv);
     lpv.lpv.occlusion = false;
@@ -175,7 +175,7 @@ TEST(LpvCascades, IrradianceIsContinuousAcrossCascadeBorders) {
     const glm::vec3 normal(1.0f, 0.0f, 0.0f);
     auto steps = [&](uint32_t cascades, float fade_cells) {
         BakeConfig c;
-        c.method = "lpv";
+        c.method = Method::Lpv;
         c.volumes = {line};
         c.lpv.cascades = cascades;
         c.lpv.fadeCells = fade_cells;
@@ -207,7 +207,7 @@ TEST(LpvDeterminism, BitIdenticalForOneAndTwoThreads) {
     Result<Scene> scene = loadGltf(dir / "cornell.gltf");
     ASSERT_TRUE(scene.ok());
     BakeConfig c;
-    c.method = "lpv";
+    c.method = Method::Lpv;
     c.lpv.cascades = 2;
     c.lpv.directSamples = 16;
     VolumeConfig v;
@@ -237,7 +237,7 @@ TEST(LpvConfig, ParsesTheSectionAndRecordsResolvedValues) {
     Result<BakeConfig> c = parseBakeConfig(text, "bake.json");
     ASSERT_TRUE(c.ok()) << c.error().message;
     const LpvConfig& l = c.value().lpv;
-    EXPECT_EQ(c.value().method, "lpv");
+    EXPECT_EQ(c.value().method, Method::Lpv);
     EXPECT_EQ(l.grid, 16u);
     EXPECT_EQ(l.cascades, 2u);
     EXPECT_EQ(l.cascadeRatio, 3.0f);
@@ -283,7 +283,7 @@ TEST(LpvPropagated, LightsReachTheProbesThroughTheGrid) {
     ASSERT_TRUE(scene.hasGeometry());
     // Probes 2 m from the light in the lit room (z = 1) and behind the wall (x = 2, z = -1).
     BakeConfig c;
-    c.method = "lpv";
+    c.method = Method::Lpv;
     c.volumes = {
         probeLine(glm::vec3(-3.05f, 0.95f, 0.95f), glm::vec3(-2.95f, 1.05f, 1.05f), glm::uvec3(1)),
         probeLine(glm::vec3(1.95f, 0.95f, -1.05f), glm::vec3(2.05f, 1.05f, -0.95f), glm::uvec3(1))};

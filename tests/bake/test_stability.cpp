@@ -126,7 +126,7 @@ TEST(StabilityFlicker, DefaultVplSamplingFollowsTheReferenceChange) {
         for (const VplSampling sampling :
              {VplSampling::Random, VplSampling::Stratified, VplSampling::Jittered}) {
             BakeConfig vpl = base;
-            vpl.method = "vpl";
+            vpl.method = Method::Vpl;
             vpl.vpl.sampling = sampling;
             const double ratio = flicker(vpl) / reference;
             std::printf("[stability flicker] %-5s room, %-10s sampling: frame-to-frame change "
@@ -168,7 +168,7 @@ TEST(StabilityLeak, VplShadowsCutTheThinWallLeak) {
     const double reference = towardsWall(bakeOrFail(scene, path));
     ASSERT_GT(reference, 0.0);
     BakeConfig vpl;
-    vpl.method = "vpl";
+    vpl.method = Method::Vpl;
     vpl.volumes = {line};
     const double ratio_on = towardsWall(bakeOrFail(scene, vpl)) / reference;
     vpl.vpl.shadows = false;

@@ -592,7 +592,7 @@ protected:
 
     static std::vector<std::vector<double>> bakeVpl(const VplConfig& vpl, uint64_t seed) {
         BakeConfig c = probesAt(*s_points);
-        c.method = "vpl";
+        c.method = Method::Vpl;
         c.vpl = vpl;
         c.seed = seed;
         Result<BakeResult> r = bake(*s_scene, c);
@@ -771,7 +771,7 @@ TEST(VplBake, BitIdenticalForOneAndTwoThreadsAndRecordsResolvedSettings) {
     Result<Scene> scene = loadGltf(dir / "cornell.gltf");
     ASSERT_TRUE(scene.ok());
     BakeConfig c;
-    c.method = "vpl";
+    c.method = Method::Vpl;
     c.vpl.count = 4096;
     VolumeConfig v;
     v.resolution = glm::uvec3(4, 4, 2);
@@ -843,7 +843,7 @@ TEST(VplConfig, ParsesTheSection) {
     Result<BakeConfig> c = parseBakeConfig(text, "bake.json");
     ASSERT_TRUE(c.ok()) << c.error().message;
     const VplConfig& v = c.value().vpl;
-    EXPECT_EQ(c.value().method, "vpl");
+    EXPECT_EQ(c.value().method, Method::Vpl);
     EXPECT_EQ(*v.count, 8192u);
     EXPECT_EQ(v.bounces, 1u);
     EXPECT_EQ(v.directSamples, 64u);

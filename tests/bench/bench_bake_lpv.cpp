@@ -22,7 +22,7 @@ using namespace probekit::baker;
 namespace {
 
 // A 16x16x16 volume over the box with the given method.
-BakeConfig volume16(const std::string& method) {
+BakeConfig volume16(Method method) {
     BakeConfig c;
     VolumeConfig v;
     v.resolution = glm::uvec3(16);
@@ -35,7 +35,7 @@ BakeConfig volume16(const std::string& method) {
 void BM_LpvCornellDefault(benchmark::State& state) {
     for (auto _ : state) {
         BakeConfig config = bench::referenceProbes();
-        config.method = "lpv";
+        config.method = Method::Lpv;
         Result<BakeResult> r = bench::bakeCornell(config);
         if (!r) {
             state.SkipWithError(r.error().message.c_str());
@@ -64,10 +64,10 @@ void BM_LpvCornellGridSweep(benchmark::State& state) {
         for (uint32_t grid : {16u, 32u, 64u}) {
             for (uint32_t iterations : {grid / 2, grid, 2 * grid}) {
                 BakeConfig points = bench::referenceProbes();
-                points.method = "lpv";
+                points.method = Method::Lpv;
                 points.lpv.grid = grid;
                 points.lpv.iterations = iterations;
-                BakeConfig volume = volume16("lpv");
+                BakeConfig volume = volume16(Method::Lpv);
                 volume.lpv = points.lpv;
                 Result<BakeResult> r = bench::bakeCornell(points);
                 Result<BakeResult> v = bench::bakeCornell(volume);
@@ -91,8 +91,8 @@ BENCHMARK(BM_LpvCornellGridSweep)->Iterations(1)->Unit(benchmark::kMillisecond)-
 void BM_LpvVsPath16Cubed(benchmark::State& state) {
     constexpr int kRounds = 2;
     for (auto _ : state) {
-        const BakeConfig lpv_config = volume16("lpv");
-        BakeConfig path_config = volume16("path");
+        const BakeConfig lpv_config = volume16(Method::Lpv);
+        BakeConfig path_config = volume16(Method::Path);
         path_config.path.samples = 4096;
         double lpv_seconds = 0.0, path_seconds = 0.0;
         for (int round = 0; round < kRounds; ++round) {

@@ -47,7 +47,7 @@ double relMeanDifference(const std::vector<std::vector<glm::dvec3>>& a,
 // (1) Default settings at the reference points.
 void BM_VplCornellDefault(benchmark::State& state) {
     BakeConfig config = referenceProbes();
-    config.method = "vpl";
+    config.method = Method::Vpl;
     for (auto _ : state) {
         Result<BakeResult> r = bakeCornell(config);
         if (!r) {
@@ -76,7 +76,7 @@ void BM_VplCornellCountSweep(benchmark::State& state) {
                     kSeeds, "count", "vpls", "rel RMSE", "(min..max)", "seconds", "cut/probe");
         for (uint32_t count = 256; count <= 65536; count *= 4) {
             BakeConfig config = referenceProbes();
-            config.method = "vpl";
+            config.method = Method::Vpl;
             config.vpl.count = count;
             double sum = 0.0, lo = INFINITY, hi = 0.0, seconds = 0.0, cut = 0.0;
             uint64_t vpls = 0;
@@ -121,7 +121,7 @@ void BM_VplCornellClampBias(benchmark::State& state) {
             double error = 0.0, bias = 0.0;
             for (int seed = 1; seed <= kSeeds; ++seed) {
                 BakeConfig config = referenceProbes();
-                config.method = "vpl";
+                config.method = Method::Vpl;
                 config.vpl.count = 65536;
                 config.vpl.clamp = mode;
                 config.seed = uint64_t(seed);
@@ -160,9 +160,9 @@ void BM_VplVsPath16Cubed(benchmark::State& state) {
         VolumeConfig v;
         v.resolution = glm::uvec3(16);
         vpl_config.volumes = {v};
-        vpl_config.method = "vpl";
+        vpl_config.method = Method::Vpl;
         BakeConfig path_config = vpl_config;
-        path_config.method = "path";
+        path_config.method = Method::Path;
         path_config.path.samples = 4096;
         double vpl_seconds = 0.0, path_seconds = 0.0, cut = 0.0;
         uint64_t vpls = 0;

@@ -36,6 +36,14 @@ expect 0 "--points" -- "$pk" sample --help
 expect 2 "" -- "$pk" bake --no-such-flag x.gltf -o y.pvol
 
 expect 0 "wrote cornell.gltf" -- "$pk" scene cornell -o cornell.gltf
+# Flags are checked by the settings table's rules, with the config field's name and message.
+expect 2 "--lpv-grid: lpv.grid: must be in 4..256 \\(got 2\\)" -- \
+    "$pk" bake cornell.gltf -o flag.pvol --lpv-grid 2
+expect 2 "vpl.clamp: \"sphere\" is not one of none, distance, spherical" -- \
+    "$pk" bake cornell.gltf -o flag.pvol --vpl-clamp sphere
+expect 2 "target_error: must be in \\(0, 1\\)" -- \
+    "$pk" bake cornell.gltf -o flag.pvol --target-error 1.5
+check "no output after a bad flag" test ! -e flag.pvol
 expect 0 "wrote courtyard.gltf" -- "$pk" scene courtyard -o courtyard.gltf
 expect 0 "wrote small.pvol" -- "$pk" bake cornell.gltf -o small.pvol --resolution 2,2,2 \
     --samples 16 --report report.json

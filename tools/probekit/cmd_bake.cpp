@@ -1,6 +1,9 @@
 // `probekit bake`, `probekit scene` and `probekit bench-rays`.
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -13,6 +16,7 @@
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/bench_rays.hpp"
 #include "probekit/baker/generators.hpp"
+#include "probekit/baker/settings.hpp"
 #include "probekit/runtime/sampler.hpp"
 
 namespace probekit::cli {
@@ -22,37 +26,26 @@ struct BakeOptionsCli {
     std::string scene;
     std::string output;
     std::string config;
-    std::optional<std::string> method;
-    std::optional<uint32_t> samples;
-    std::optional<uint32_t> bounces;
-    std::optional<uint64_t> seed;
-    std::optional<uint32_t> vplCount;
-    std::optional<std::string> vplClamp;
-    std::optional<std::string> vplShadows;
-    std::optional<std::string> vplSampling;
-    std::optional<uint32_t> vplBounces;
-    std::optional<uint32_t> lpvGrid;
-    std::optional<uint32_t> lpvIterations;
-    std::optional<uint32_t> lpvCascades;
-    std::optional<std::string> lpvOcclusion;
-    std::optional<std::string> lpvDirect;
-    uint32_t threads = 0;
+    // Flags that set a bake setting (settings.hpp), by config path: applied over the config
+    // file in the settings table's order.
+    std::map<std::string, std::string> settings;
+    std::optional<std::string> samples; // the per-probe directions of the chosen method
     std::vector<uint32_t> resolution;
-    std::optional<float> density;
-    std::optional<std::string> position;
-    std::optional<std::string> format;
-    std::optional<int> shOrder;
     std::optional<std::string> env;
-    std::optional<uint64_t> maxMemoryMb;
+    bool noVisibility = false;
+    uint32_t threads = 0;
     std::optional<int> sceneIndex;
     std::string report;
     bool quiet = false;
-    bool noVisibility = false;
-    std::optional<double> targetError;
     bool verify = false;
     uint32_t verifyPoints = 256;
     uint32_t verifySamples = 4096;
 };
+
+int fail(const Error& e, const char* what = "") {
+    std::fprintf(stderr, "probekit bake: %s%s\n", what, e.message.c_str());
+    return kExitFailure;
+}
 
 // --verify: the baked file's irradiance at points spread over its volumes against a path
 // reference made of two independent estimates (their difference measures the reference's own
@@ -114,237 +107,165 @@ void printProgress(const baker::BakeProgress& p) {
     std::fflush(stderr);
 }
 
-int runBake(const BakeOptionsCli& o) {
-    Result<baker::BakeConfig> config_result = o.config.empty()
-                                                  ? Result<baker::BakeConfig>(baker::BakeConfig{})
-                                                  : baker::loadBakeConfig(o.config);
-    if (!config_result) {
-        std::fprintf(stderr, "probekit bake: %s\n", config_result.error().message.c_str());
-        return kExitFailure;
+// The config file (or the defaults) with the flags applied over it.
+Result<baker::BakeConfig> configFromOptions(const BakeOptionsCli& o) {
+    Result<baker::BakeConfig> loaded = o.config.empty()
+                                           ? Result<baker::BakeConfig>(baker::BakeConfig{})
+                                           : baker::loadBakeConfig(o.config);
+    if (!loaded) {
+        return loaded;
     }
-    baker::BakeConfig config = std::move(config_result).value();
-    // Flags override the config file.
-    if (o.method) {
-        config.method = *o.method;
+    baker::BakeConfig config = std::move(loaded).value();
+    if (config.volumes.empty()) {
+        config.volumes.push_back(baker::VolumeConfig{});
+    }
+    for (const baker::SettingInfo& s : baker::bakeSettings()) {
+        if (auto it = o.settings.find(s.path); it != o.settings.end()) {
+            if (auto set = baker::setBakeSetting(config, s.path, it->second, s.flag); !set) {
+                return set.error();
+            }
+        }
     }
     if (o.samples) {
         // For vpl and lpv the only per-probe directions are those of the direct light.
-        (config.method == "vpl"   ? config.vpl.directSamples
-         : config.method == "lpv" ? config.lpv.directSamples
-                                  : config.path.samples) = *o.samples;
-    }
-    if (o.bounces) {
-        config.path.maxBounces = *o.bounces;
-    }
-    if (o.seed) {
-        config.seed = *o.seed;
-    }
-    if (o.vplCount) {
-        config.vpl.count = *o.vplCount;
-    }
-    if (o.vplClamp) {
-        config.vpl.clamp = *o.vplClamp == "none"       ? baker::VplClamp::None
-                           : *o.vplClamp == "distance" ? baker::VplClamp::Distance
-                                                       : baker::VplClamp::Spherical;
-    }
-    if (o.vplShadows) {
-        config.vpl.shadows = *o.vplShadows == "on";
-    }
-    if (o.vplSampling) {
-        config.vpl.sampling = *o.vplSampling == "random"     ? baker::VplSampling::Random
-                              : *o.vplSampling == "jittered" ? baker::VplSampling::Jittered
-                                                             : baker::VplSampling::Stratified;
-    }
-    if (o.vplBounces) {
-        config.vpl.bounces = *o.vplBounces;
-    }
-    if (o.lpvGrid) {
-        config.lpv.grid = *o.lpvGrid;
-    }
-    if (o.lpvIterations) {
-        config.lpv.iterations = *o.lpvIterations;
-    }
-    if (o.lpvCascades) {
-        config.lpv.cascades = *o.lpvCascades;
-    }
-    if (o.lpvOcclusion) {
-        config.lpv.occlusion = *o.lpvOcclusion == "on";
-    }
-    if (o.lpvDirect) {
-        config.lpv.direct =
-            *o.lpvDirect == "traced" ? baker::LpvDirect::Traced : baker::LpvDirect::Propagated;
+        const char* path = config.method == baker::Method::Vpl   ? "vpl.direct_samples"
+                           : config.method == baker::Method::Lpv ? "lpv.direct_samples"
+                                                                 : "path.samples";
+        if (auto set = baker::setBakeSetting(config, path, *o.samples, "--samples"); !set) {
+            return set.error();
+        }
     }
     if (o.noVisibility) {
         config.visibility = false;
     }
-    if (o.maxMemoryMb) {
-        config.maxMemoryBytes = *o.maxMemoryMb << 20;
-    }
     if (o.env) {
         Result<baker::EnvironmentConfig> env = parseEnvFlag(*o.env);
         if (!env) {
-            std::fprintf(stderr, "probekit bake: %s\n", env.error().message.c_str());
-            return kExitFailure;
+            return env.error();
         }
         config.environment = env.value();
     }
-    if (config.volumes.empty()) {
-        config.volumes.push_back(baker::VolumeConfig{});
-    }
     for (baker::VolumeConfig& v : config.volumes) {
         if (!o.resolution.empty()) {
-            const glm::uvec3 res(o.resolution[0], o.resolution[1], o.resolution[2]);
-            v.resolution = res;
+            v.resolution = glm::uvec3(o.resolution[0], o.resolution[1], o.resolution[2]);
         }
-        if (o.density) {
-            v.resolution.reset();
-            v.density = *o.density;
-        }
-        if (o.position) {
-            v.position =
-                *o.position == "corner" ? grid::PositionMode::Corner : grid::PositionMode::Center;
-        }
-        if (o.format) {
-            v.storage = *o.format == "float" ? Storage::Float32 : Storage::Float16;
-        }
-        if (o.shOrder) {
-            v.shOrder = *o.shOrder == 1 ? sh::Order::L1 : sh::Order::L2;
+        if (o.settings.count("volumes[].density")) {
+            v.resolution.reset(); // --density overrides a resolution from the config file
         }
     }
+    return config;
+}
 
+Result<baker::Scene> loadScene(const BakeOptionsCli& o, const baker::EnvironmentConfig& env) {
     baker::LoadOptions load_options;
     load_options.sceneIndex = o.sceneIndex;
     Result<baker::Scene> scene = baker::loadGltf(o.scene, load_options);
     if (!scene) {
-        std::fprintf(stderr, "probekit bake: %s\n", scene.error().message.c_str());
-        return kExitFailure;
+        return scene;
     }
-    Result<baker::Environment> env = baker::makeEnvironment(config.environment);
-    if (!env) {
-        std::fprintf(stderr, "probekit bake: %s\n", env.error().message.c_str());
-        return kExitFailure;
+    Result<baker::Environment> environment = baker::makeEnvironment(env);
+    if (!environment) {
+        return environment.error();
     }
-    scene.value().environment = std::move(env).value();
+    scene.value().environment = std::move(environment).value();
     for (const std::string& w : scene.value().warnings) {
         std::fprintf(stderr, "probekit bake: warning: %s\n", w.c_str());
     }
+    return scene;
+}
 
-    if (o.targetError) {
-        config.targetError = *o.targetError;
-    }
-    std::optional<baker::TargetChoice> choice;
-    if (config.targetError) {
-        Result<baker::TargetChoice> chosen =
-            baker::chooseSettings(scene.value(), config, *config.targetError, o.threads);
-        if (!chosen) {
-            std::fprintf(stderr, "probekit bake: %s\n", chosen.error().message.c_str());
-            return kExitFailure;
-        }
-        choice = std::move(chosen).value();
-        config = choice->config;
-        if (!o.quiet) {
-            std::printf(
-                "target error %.3g (relative RMS irradiance error against a path reference)\n"
+void printChoice(const baker::TargetChoice& c) {
+    std::printf("target error %.3g (relative RMS irradiance error against a path reference)\n"
                 "  pilot: %u points x 2 estimates x %u directions, %.2f s: noise %.3g per "
                 "probe, SH band 2 carries %.3g\n"
                 "  chosen: SH order L%d (%s), %u directions per probe (interpolated noise "
                 "%.3g), bricked volumes, levels 0..%u, refine_error %.3g\n",
-                choice->target, choice->pilotPoints, choice->pilotSamples, choice->pilotSeconds,
-                choice->pilotNoise, choice->band2, int(choice->shOrder),
-                choice->shOrder == sh::Order::L1 ? "band 2 < 0.4 x target" : "band 2 needed",
-                choice->samples, choice->predictedNoise, brick::kMaxLevel,
-                choice->interpolationBudget);
-        }
-    }
+                c.target, c.pilotPoints, c.pilotSamples, c.pilotSeconds, c.pilotNoise, c.band2,
+                int(c.shOrder),
+                c.shOrder == sh::Order::L1 ? "band 2 < 0.4 x target" : "band 2 needed", c.samples,
+                c.predictedNoise, brick::kMaxLevel, c.interpolationBudget);
+}
 
-    Result<std::vector<VolumeDesc>> placed = baker::resolveVolumes(scene.value(), config);
-    if (!placed) {
-        std::fprintf(stderr, "probekit bake: %s\n", placed.error().message.c_str());
-        return kExitFailure;
+void printMethod(const BakeOptionsCli& o, const baker::Scene& scene,
+                 const baker::BakeConfig& config, const std::vector<VolumeDesc>& placed) {
+    const auto seed = static_cast<unsigned long long>(config.seed);
+    if (config.method == baker::Method::Vpl) {
+        const baker::VplConfig v = baker::resolveVplConfig(scene, placed, config);
+        std::printf("baking %s: method vpl, seed %llu\n"
+                    "  direct light: %u directions per probe (vpl.direct_samples)\n"
+                    "  %u VPLs%s, %u bounces, %s sampling, clamp %s (%.4f m%s), near field "
+                    "%.4f m%s, shadows %s, cut error %g\n",
+                    o.scene.c_str(), seed, v.directSamples, *v.count,
+                    config.vpl.count ? ""
+                                     : " (auto: 4 x surface area / probe spacing^2, "
+                                       "power of two in 16384..65536)",
+                    v.bounces, std::string(baker::toString(v.sampling)).c_str(),
+                    std::string(baker::toString(v.clamp)).c_str(), *v.clampDistance,
+                    config.vpl.clampDistance ? "" : ", auto: 2 sqrt(area / (pi count))",
+                    *v.nearField, config.vpl.nearField ? "" : " (auto: 2 x clamp distance)",
+                    v.shadows ? "on" : "off", double(v.cutError));
+    } else if (config.method == baker::Method::Lpv) {
+        const baker::LpvConfig& l = config.lpv;
+        const std::string direct = l.direct == baker::LpvDirect::Traced
+                                       ? "traced, " + std::to_string(l.directSamples) +
+                                             " directions per probe (lpv.direct_samples)"
+                                       : "propagated through the grids";
+        std::printf("baking %s: method lpv, seed %llu\n"
+                    "  direct light: %s\n"
+                    "  %u VPLs, %u cascade(s) of %u cells on the longest axis (ratio %g), %u "
+                    "iterations%s, occlusion %s, propagation weight %g, fade %g cells, "
+                    "intensity %g\n",
+                    o.scene.c_str(), seed, direct.c_str(), l.vplCount, l.cascades, l.grid,
+                    double(l.cascadeRatio), l.iterations ? *l.iterations : l.grid,
+                    l.iterations ? "" : " (auto: = grid)", l.occlusion ? "on" : "off",
+                    double(l.propagationWeight), double(l.fadeCells), double(l.intensity));
+    } else {
+        std::printf("baking %s: method path, %u samples, %u bounces, seed %llu\n", o.scene.c_str(),
+                    config.path.samples, config.path.maxBounces, seed);
     }
-    if (!o.quiet) {
-        if (config.method == "vpl") {
-            const baker::VplConfig v =
-                baker::resolveVplConfig(scene.value(), placed.value(), config);
-            std::printf("baking %s: method vpl, seed %llu\n"
-                        "  direct light: %u directions per probe (vpl.direct_samples)\n"
-                        "  %u VPLs%s, %u bounces, %s sampling, clamp %s (%.4f m%s), near field "
-                        "%.4f m%s, shadows %s, cut error %g\n",
-                        o.scene.c_str(), static_cast<unsigned long long>(config.seed),
-                        v.directSamples, *v.count,
-                        config.vpl.count ? ""
-                                         : " (auto: 4 x surface area / probe spacing^2, "
-                                           "power of two in 16384..65536)",
-                        v.bounces, std::string(baker::toString(v.sampling)).c_str(),
-                        std::string(baker::toString(v.clamp)).c_str(), *v.clampDistance,
-                        config.vpl.clampDistance ? "" : ", auto: 2 sqrt(area / (pi count))",
-                        *v.nearField, config.vpl.nearField ? "" : " (auto: 2 x clamp distance)",
-                        v.shadows ? "on" : "off", double(v.cutError));
-        } else if (config.method == "lpv") {
-            const baker::LpvConfig& l = config.lpv;
-            const std::string direct = l.direct == baker::LpvDirect::Traced
-                                           ? "traced, " + std::to_string(l.directSamples) +
-                                                 " directions per probe (lpv.direct_samples)"
-                                           : "propagated through the grids";
-            std::printf("baking %s: method lpv, seed %llu\n"
-                        "  direct light: %s\n"
-                        "  %u VPLs, %u cascade(s) of %u cells on the longest axis (ratio %g), %u "
-                        "iterations%s, occlusion %s, propagation weight %g, fade %g cells, "
-                        "intensity %g\n",
-                        o.scene.c_str(), static_cast<unsigned long long>(config.seed),
-                        direct.c_str(), l.vplCount, l.cascades, l.grid, double(l.cascadeRatio),
-                        l.iterations ? *l.iterations : l.grid,
-                        l.iterations ? "" : " (auto: = grid)", l.occlusion ? "on" : "off",
-                        double(l.propagationWeight), double(l.fadeCells), double(l.intensity));
-        } else {
-            std::printf("baking %s: method %s, %u samples, %u bounces, seed %llu\n",
-                        o.scene.c_str(), config.method.c_str(), config.path.samples,
-                        config.path.maxBounces, static_cast<unsigned long long>(config.seed));
-        }
-        for (const VolumeDesc& d : placed.value()) {
-            const glm::uvec3 r = d.grid.resolution();
-            const glm::vec3 lo = d.grid.bounds().min;
-            const glm::vec3 hi = d.grid.bounds().max;
-            if (d.layout == VolumeLayout::Bricked) {
-                std::printf("  volume '%s': bricked, %ux%ux%u level-0 bricks, levels 0..%u, L%d, "
-                            "%s, bounds (%.3f, %.3f, %.3f) .. (%.3f, %.3f, %.3f) m\n",
-                            d.name.c_str(), r.x, r.y, r.z, d.bricks.maxLevel, int(d.shOrder),
-                            std::string(toString(d.storage)).c_str(), lo.x, lo.y, lo.z, hi.x, hi.y,
-                            hi.z);
-                continue;
-            }
-            std::printf("  volume '%s': %ux%ux%u %s probes, L%d, %s, bounds (%.3f, %.3f, %.3f) "
-                        ".. (%.3f, %.3f, %.3f) m\n",
-                        d.name.c_str(), r.x, r.y, r.z,
-                        std::string(grid::toString(d.grid.mode())).c_str(), int(d.shOrder),
+}
+
+void printVolumes(const std::vector<VolumeDesc>& placed) {
+    for (const VolumeDesc& d : placed) {
+        const glm::uvec3 r = d.grid.resolution();
+        const glm::vec3 lo = d.grid.bounds().min;
+        const glm::vec3 hi = d.grid.bounds().max;
+        if (d.layout == VolumeLayout::Bricked) {
+            std::printf("  volume '%s': bricked, %ux%ux%u level-0 bricks, levels 0..%u, L%d, "
+                        "%s, bounds (%.3f, %.3f, %.3f) .. (%.3f, %.3f, %.3f) m\n",
+                        d.name.c_str(), r.x, r.y, r.z, d.bricks.maxLevel, int(d.shOrder),
                         std::string(toString(d.storage)).c_str(), lo.x, lo.y, lo.z, hi.x, hi.y,
                         hi.z);
+            continue;
         }
-        std::fflush(stdout);
+        std::printf("  volume '%s': %ux%ux%u %s probes, L%d, %s, bounds (%.3f, %.3f, %.3f) "
+                    ".. (%.3f, %.3f, %.3f) m\n",
+                    d.name.c_str(), r.x, r.y, r.z,
+                    std::string(grid::toString(d.grid.mode())).c_str(), int(d.shOrder),
+                    std::string(toString(d.storage)).c_str(), lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
     }
+}
 
-    baker::BakeOptions bake_options;
-    bake_options.threads = o.threads;
-    const bool show_progress = !o.quiet && isatty(STDERR_FILENO);
-    if (show_progress) {
-        bake_options.progress = printProgress;
+uint64_t gpuBytes(const PvolFile& file) {
+    uint64_t bytes = 0;
+    for (const Volume& v : file.volumes) {
+        bytes += v.gpuBytes();
     }
-    Result<baker::BakeResult> result = baker::bake(scene.value(), config, bake_options);
-    if (show_progress) {
-        std::fprintf(stderr, "\n");
+    return bytes;
+}
+
+bool anyBricked(const PvolFile& file) {
+    for (const Volume& v : file.volumes) {
+        if (v.desc.layout == VolumeLayout::Bricked) {
+            return true;
+        }
     }
-    if (!result) {
-        std::fprintf(stderr, "probekit bake: %s\n", result.error().message.c_str());
-        return kExitFailure;
-    }
-    for (const std::string& w : result.value().warnings) {
-        std::fprintf(stderr, "probekit bake: warning: %s\n", w.c_str());
-    }
-    if (auto w = writePvol(o.output, result.value().file); !w) {
-        std::fprintf(stderr, "probekit bake: %s\n", w.error().message.c_str());
-        return kExitFailure;
-    }
-    const baker::BakeStats& s = result.value().stats;
+    return false;
+}
+
+nlohmann::json makeReport(const BakeOptionsCli& o, const baker::BakeResult& result,
+                          const std::optional<baker::TargetChoice>& choice) {
+    const baker::BakeStats& s = result.stats;
     nlohmann::json report = {
         {"scene", o.scene},
         {"output", o.output},
@@ -358,16 +279,10 @@ int runBake(const BakeOptionsCli& o) {
         {"vpls", s.vpls},
         {"vpl_light_paths", s.vplLightPaths},
         {"vpl_mean_cut", s.vplMeanCut},
-        {"settings", nlohmann::json::parse(result.value().file.metadata.parametersJson)},
+        {"settings", nlohmann::json::parse(result.file.metadata.parametersJson)},
+        {"gpu_bytes", gpuBytes(result.file)},
     };
-    uint64_t gpu_bytes = 0;
-    bool any_bricked = false;
-    for (const Volume& v : result.value().file.volumes) {
-        gpu_bytes += v.gpuBytes();
-        any_bricked |= v.desc.layout == VolumeLayout::Bricked;
-    }
-    report["gpu_bytes"] = gpu_bytes;
-    if (any_bricked) {
+    if (anyBricked(result.file)) {
         report["bricks_per_level"] = {s.bricksPerLevel[0], s.bricksPerLevel[1], s.bricksPerLevel[2],
                                       s.bricksPerLevel[3]};
         report["refine_candidates"] = s.refineCandidates;
@@ -386,69 +301,170 @@ int runBake(const BakeOptionsCli& o) {
                             {"band2", choice->band2},
                             {"pilot_seconds", choice->pilotSeconds}};
     }
-    if (!o.quiet) {
-        std::printf("wrote %s: %.2f s, %llu probes, %.3g rays, %.2f Mrays/s, %llu invalid probes, "
-                    "peak memory %.1f MiB, %u threads\n",
-                    o.output.c_str(), s.seconds, static_cast<unsigned long long>(s.probes),
-                    double(s.rays), s.mraysPerSecond,
-                    static_cast<unsigned long long>(s.invalidProbes),
-                    double(s.peakMemoryBytes) / (1 << 20), s.threads);
-        if (config.method == "vpl") {
-            std::printf("  %llu VPLs from %llu light paths, %.1f clusters gathered per probe\n",
-                        static_cast<unsigned long long>(s.vpls),
-                        static_cast<unsigned long long>(s.vplLightPaths), s.vplMeanCut);
-        }
-        if (any_bricked) {
-            std::printf("  bricks by level %llu / %llu / %llu / %llu, %llu tested for "
-                        "refinement, %llu probes nudged off surfaces, GPU bytes %llu, predicted "
-                        "interpolation error %.3g\n",
-                        static_cast<unsigned long long>(s.bricksPerLevel[0]),
-                        static_cast<unsigned long long>(s.bricksPerLevel[1]),
-                        static_cast<unsigned long long>(s.bricksPerLevel[2]),
-                        static_cast<unsigned long long>(s.bricksPerLevel[3]),
-                        static_cast<unsigned long long>(s.refineCandidates),
-                        static_cast<unsigned long long>(s.nudgedProbes),
-                        static_cast<unsigned long long>(gpu_bytes), s.predictedInterpolationError);
-            if (s.budgetDropped > 0) {
-                std::printf("  max_memory_mb bound: %llu finer bricks dropped, the costliest "
-                            "with disagreement %.3g\n",
-                            static_cast<unsigned long long>(s.budgetDropped), s.budgetError);
-            }
-        }
-        if (choice) {
-            std::printf("  predicted error %.3g (target %.3g)\n", baker::predictError(*choice, s),
-                        choice->target);
+    return report;
+}
+
+void printSummary(const BakeOptionsCli& o, const baker::BakeConfig& config,
+                  const baker::BakeResult& result,
+                  const std::optional<baker::TargetChoice>& choice) {
+    const baker::BakeStats& s = result.stats;
+    const auto count = [](uint64_t n) { return static_cast<unsigned long long>(n); };
+    std::printf("wrote %s: %.2f s, %llu probes, %.3g rays, %.2f Mrays/s, %llu invalid probes, "
+                "peak memory %.1f MiB, %u threads\n",
+                o.output.c_str(), s.seconds, count(s.probes), double(s.rays), s.mraysPerSecond,
+                count(s.invalidProbes), double(s.peakMemoryBytes) / (1 << 20), s.threads);
+    if (config.method == baker::Method::Vpl) {
+        std::printf("  %llu VPLs from %llu light paths, %.1f clusters gathered per probe\n",
+                    count(s.vpls), count(s.vplLightPaths), s.vplMeanCut);
+    }
+    if (anyBricked(result.file)) {
+        std::printf("  bricks by level %llu / %llu / %llu / %llu, %llu tested for "
+                    "refinement, %llu probes nudged off surfaces, GPU bytes %llu, predicted "
+                    "interpolation error %.3g\n",
+                    count(s.bricksPerLevel[0]), count(s.bricksPerLevel[1]),
+                    count(s.bricksPerLevel[2]), count(s.bricksPerLevel[3]),
+                    count(s.refineCandidates), count(s.nudgedProbes), count(gpuBytes(result.file)),
+                    s.predictedInterpolationError);
+        if (s.budgetDropped > 0) {
+            std::printf("  max_memory_mb bound: %llu finer bricks dropped, the costliest "
+                        "with disagreement %.3g\n",
+                        count(s.budgetDropped), s.budgetError);
         }
     }
-    if (o.verify) {
-        double seconds = 0.0;
-        Result<baker::ErrorEstimate> e =
-            verifyBake(scene.value(), config, result.value().file, o, seconds);
-        if (!e) {
-            std::fprintf(stderr, "probekit bake: --verify: %s\n", e.error().message.c_str());
-            return kExitFailure;
+    if (choice) {
+        std::printf("  predicted error %.3g (target %.3g)\n", baker::predictError(*choice, s),
+                    choice->target);
+    }
+}
+
+// --verify: measures, prints and records the error of the written file.
+Result<void> runVerify(const BakeOptionsCli& o, const baker::Scene& scene,
+                       const baker::BakeConfig& config, const PvolFile& file,
+                       nlohmann::json& report) {
+    double seconds = 0.0;
+    Result<baker::ErrorEstimate> e = verifyBake(scene, config, file, o, seconds);
+    if (!e) {
+        return e.error();
+    }
+    report["verify"] = {{"rel_rmse", e.value().relRmse},
+                        {"rel_rmse_raw", e.value().relRmseRaw},
+                        {"reference_noise", e.value().referenceNoise},
+                        {"points", e.value().points},
+                        {"samples", o.verifySamples},
+                        {"seconds", seconds}};
+    if (!o.quiet) {
+        std::printf("verify: measured error %.4f against a path reference (%zu points, 2 x "
+                    "%u directions, reference noise %.4f subtracted; raw %.4f), %.2f s\n",
+                    e.value().relRmse, e.value().points, o.verifySamples, e.value().referenceNoise,
+                    e.value().relRmseRaw, seconds);
+    }
+    return {};
+}
+
+Result<baker::BakeResult> bakeWithProgress(const BakeOptionsCli& o, const baker::Scene& scene,
+                                           const baker::BakeConfig& config) {
+    baker::BakeOptions options;
+    options.threads = o.threads;
+    const bool show_progress = !o.quiet && isatty(STDERR_FILENO);
+    if (show_progress) {
+        options.progress = printProgress;
+    }
+    Result<baker::BakeResult> result = baker::bake(scene, config, options);
+    if (show_progress) {
+        std::fprintf(stderr, "\n");
+    }
+    return result;
+}
+
+int runBake(const BakeOptionsCli& o) {
+    Result<baker::BakeConfig> config = configFromOptions(o);
+    if (!config) {
+        return fail(config.error());
+    }
+    Result<baker::Scene> scene = loadScene(o, config.value().environment);
+    if (!scene) {
+        return fail(scene.error());
+    }
+    std::optional<baker::TargetChoice> choice;
+    if (config.value().targetError) {
+        Result<baker::TargetChoice> chosen = baker::chooseSettings(
+            scene.value(), config.value(), *config.value().targetError, o.threads);
+        if (!chosen) {
+            return fail(chosen.error());
         }
-        report["verify"] = {{"rel_rmse", e.value().relRmse},
-                            {"rel_rmse_raw", e.value().relRmseRaw},
-                            {"reference_noise", e.value().referenceNoise},
-                            {"points", e.value().points},
-                            {"samples", o.verifySamples},
-                            {"seconds", seconds}};
+        choice = std::move(chosen).value();
+        config.value() = choice->config;
         if (!o.quiet) {
-            std::printf("verify: measured error %.4f against a path reference (%zu points, 2 x "
-                        "%u directions, reference noise %.4f subtracted; raw %.4f), %.2f s\n",
-                        e.value().relRmse, e.value().points, o.verifySamples,
-                        e.value().referenceNoise, e.value().relRmseRaw, seconds);
+            printChoice(*choice);
+        }
+    }
+    Result<std::vector<VolumeDesc>> placed = baker::resolveVolumes(scene.value(), config.value());
+    if (!placed) {
+        return fail(placed.error());
+    }
+    if (!o.quiet) {
+        printMethod(o, scene.value(), config.value(), placed.value());
+        printVolumes(placed.value());
+        std::fflush(stdout);
+    }
+    Result<baker::BakeResult> result = bakeWithProgress(o, scene.value(), config.value());
+    if (!result) {
+        return fail(result.error());
+    }
+    for (const std::string& w : result.value().warnings) {
+        std::fprintf(stderr, "probekit bake: warning: %s\n", w.c_str());
+    }
+    if (auto w = writePvol(o.output, result.value().file); !w) {
+        return fail(w.error());
+    }
+    nlohmann::json report = makeReport(o, result.value(), choice);
+    if (!o.quiet) {
+        printSummary(o, config.value(), result.value(), choice);
+    }
+    if (o.verify) {
+        if (auto v = runVerify(o, scene.value(), config.value(), result.value().file, report); !v) {
+            return fail(v.error(), "--verify: ");
         }
     }
     if (!o.report.empty()) {
-        const std::string text = report.dump(2) + "\n";
-        if (auto w = writeFileAtomic(o.report, text); !w) {
-            std::fprintf(stderr, "probekit bake: --report: %s\n", w.error().message.c_str());
-            return kExitFailure;
+        if (auto w = writeFileAtomic(o.report, report.dump(2) + "\n"); !w) {
+            return fail(w.error(), "--report: ");
         }
     }
     return kExitOk;
+}
+
+// A CLI11 check of a flag's value by the settings table's rule for `path`.
+CLI::Validator settingValidator(const std::string& path, const std::string& admits) {
+    return CLI::Validator(
+        [path](std::string& value) {
+            Result<void> ok = baker::checkBakeSetting(path, value);
+            return ok ? std::string() : ok.error().message;
+        },
+        "[" + admits + "]");
+}
+
+const baker::SettingInfo& samplesInfo() {
+    for (const baker::SettingInfo& s : baker::bakeSettings()) {
+        if (s.path == "path.samples") {
+            return s;
+        }
+    }
+    std::abort(); // the settings table lists path.samples
+}
+
+// One flag per setting of the table that names one.
+void addSettingFlags(CLI::App* cmd, const std::shared_ptr<BakeOptionsCli>& o) {
+    for (const baker::SettingInfo& s : baker::bakeSettings()) {
+        if (s.flag.empty()) {
+            continue;
+        }
+        const std::string help = s.help + (s.unit.empty() ? "" : " (" + s.unit + ")");
+        cmd->add_option_function<std::string>(
+               s.flag, [o, path = s.path](const std::string& v) { o->settings[path] = v; }, help)
+            ->check(settingValidator(s.path, s.admits))
+            ->type_name(s.type);
+    }
 }
 
 } // namespace
@@ -459,60 +475,24 @@ void addBakeCommand(CLI::App& app, Command& selected) {
     cmd->add_option("SCENE", o->scene, "glTF 2.0 scene (.gltf or .glb)")->required();
     cmd->add_option("-o,--output", o->output, "output .pvol")->required();
     cmd->add_option("--config", o->config, "bake config JSON (flags override it)");
-    cmd->add_option("--method", o->method, "lighting method")
-        ->check(CLI::IsMember({"path", "vpl", "lpv"}));
+    addSettingFlags(cmd, o);
     cmd->add_option("--samples", o->samples,
                     "directions per probe (path: full paths; vpl, lpv: direct light only)")
-        ->check(CLI::Range(1u, 1u << 24));
-    cmd->add_option("--bounces", o->bounces, "path: maximum bounces")->check(CLI::Range(0u, 1024u));
-    cmd->add_option("--seed", o->seed, "random seed");
-    cmd->add_option("--vpl-count", o->vplCount, "vpl: VPLs to place (default: from the scene)")
-        ->check(CLI::Range(1u, 1u << 24));
-    cmd->add_option("--vpl-clamp", o->vplClamp, "vpl: near-VPL clamping")
-        ->check(CLI::IsMember({"none", "distance", "spherical"}));
-    cmd->add_option("--vpl-shadows", o->vplShadows, "vpl: visibility of VPLs at probes")
-        ->check(CLI::IsMember({"on", "off"}));
-    cmd->add_option("--vpl-sampling", o->vplSampling, "vpl: light-path sampling")
-        ->check(CLI::IsMember({"random", "stratified", "jittered"}));
-    cmd->add_option("--vpl-bounces", o->vplBounces, "vpl: reflections per light path")
-        ->check(CLI::Range(1u, 1024u));
-    cmd->add_option("--lpv-grid", o->lpvGrid, "lpv: cells along the longest axis of a cascade")
-        ->check(CLI::Range(4u, 256u));
-    cmd->add_option("--lpv-iterations", o->lpvIterations,
-                    "lpv: propagation steps (default: the grid size)")
-        ->check(CLI::Range(1u, 4096u));
-    cmd->add_option("--lpv-cascades", o->lpvCascades, "lpv: nested grids per volume")
-        ->check(CLI::Range(1u, 4u));
-    cmd->add_option("--lpv-occlusion", o->lpvOcclusion, "lpv: geometry volume")
-        ->check(CLI::IsMember({"on", "off"}));
-    cmd->add_option("--lpv-direct", o->lpvDirect, "lpv: direct light traced or propagated")
-        ->check(CLI::IsMember({"traced", "propagated"}));
+        ->check(settingValidator("path.samples", samplesInfo().admits))
+        ->type_name(samplesInfo().type);
     cmd->add_option("--threads", o->threads, "worker threads (0 = all cores)");
     auto* res = cmd->add_option("--resolution", o->resolution,
                                 "probes per axis X,Y,Z (powers of two), every volume")
                     ->delimiter(',')
                     ->expected(3);
-    cmd->add_option("--density", o->density, "automatic resolution: probes per metre")
-        ->check(CLI::PositiveNumber)
-        ->excludes(res);
-    cmd->add_option("--position", o->position, "probe placement")
-        ->check(CLI::IsMember({"center", "corner"}));
-    cmd->add_option("--format", o->format, "texel storage")
-        ->check(CLI::IsMember({"float", "half"}));
-    cmd->add_option("--sh-order", o->shOrder, "SH order")->check(CLI::IsMember({1, 2}));
+    cmd->get_option("--density")->excludes(res);
     cmd->add_option("--env", o->env, "environment: constant radiance R,G,B or a lat-long image");
-    cmd->add_option("--max-memory", o->maxMemoryMb, "memory budget for the grids, MiB")
-        ->check(CLI::PositiveNumber);
     cmd->add_option("--scene", o->sceneIndex, "glTF scene index (default: the file's default)");
     cmd->add_option("--report", o->report, "write a JSON report of the bake");
     cmd->add_flag("-q,--quiet", o->quiet, "print nothing but errors");
     cmd->add_flag("--no-visibility", o->noVisibility,
                   "store no per-probe visibility (validity.visibility false): plain trilinear "
                   "interpolation, which leaks light through walls between probes");
-    cmd->add_option("--target-error", o->targetError,
-                    "choose density, refinement, SH order and samples for this relative RMS "
-                    "irradiance error (e.g. 0.05)")
-        ->check(CLI::Range(1e-4, 0.99));
     cmd->add_flag("--verify", o->verify,
                   "measure the error of the result against a path reference at points spread "
                   "over the volumes");

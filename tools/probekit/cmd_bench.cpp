@@ -72,7 +72,7 @@ std::vector<Run> sweep(bool quick) {
     std::vector<Run> runs;
     const auto path = [&](uint32_t samples) {
         runs.push_back({"path", "samples=" + std::to_string(samples), [samples](auto& c) {
-                            c.method = "path";
+                            c.method = baker::Method::Path;
                             c.path.samples = samples;
                         }});
     };
@@ -82,7 +82,7 @@ std::vector<Run> sweep(bool quick) {
                             " clamp=" + std::string(baker::toString(clamp)) +
                             " shadows=" + (shadows ? "on" : "off"),
                         [=](auto& c) {
-                            c.method = "vpl";
+                            c.method = baker::Method::Vpl;
                             c.vpl.count = count;
                             c.vpl.clamp = clamp;
                             c.vpl.shadows = shadows;
@@ -93,7 +93,7 @@ std::vector<Run> sweep(bool quick) {
                         "grid=" + std::to_string(grid) + " cascades=" + std::to_string(cascades) +
                             " iterations=" + std::to_string(iterations.value_or(grid)),
                         [=](auto& c) {
-                            c.method = "lpv";
+                            c.method = baker::Method::Lpv;
                             c.lpv.grid = grid;
                             c.lpv.cascades = cascades;
                             c.lpv.iterations = iterations;
@@ -365,7 +365,7 @@ int runBench(const BenchOptions& o) {
                      ref_path.string().c_str(), referenceSamplesOf(reference));
     } else {
         baker::BakeConfig rc = base;
-        rc.method = "path";
+        rc.method = baker::Method::Path;
         rc.seed = ref_seed;
         rc.path.samples =
             o.referenceSamples.value_or(o.quick ? kReferenceSamplesQuick : kReferenceSamplesFull);

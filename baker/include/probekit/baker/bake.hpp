@@ -168,8 +168,13 @@ struct LpvConfig {
     float intensity = 1.0f; // scale of the propagated light for artists; 1 = physical (>= 0)
 };
 
+// The lighting method: the path-traced reference, instant radiosity (VplConfig) or light
+// propagation volumes (LpvConfig).
+enum class Method : uint8_t { Path, Vpl, Lpv };
+std::string_view toString(Method method); // "path", "vpl", "lpv"
+
 struct BakeConfig {
-    std::string method = "path"; // "path", "vpl" or "lpv"
+    Method method = Method::Path;
     uint64_t seed = 1;
     PathConfig path;
     VplConfig vpl;
@@ -196,6 +201,7 @@ struct BakeConfig {
 
 // Parses the JSON config. Unknown keys are errors (they are usually typos); every message
 // names `source` and the JSON path of the field, e.g. "bake.json: volumes[1].resolution[2]".
+// The settings, their ranges and their flags are one table (settings.hpp).
 Result<BakeConfig> parseBakeConfig(std::string_view json_text, std::string_view source,
                                    const std::filesystem::path& base_dir = {});
 Result<BakeConfig> loadBakeConfig(const std::filesystem::path& path);
@@ -266,6 +272,8 @@ struct BakeResult {
     std::vector<std::string> warnings;
 };
 
+// Checks the config first (validateBakeConfig, settings.hpp): a config built in code gets the
+// errors a config file would.
 Result<BakeResult> bake(const Scene& scene, const BakeConfig& config,
                         const BakeOptions& options = {});
 
