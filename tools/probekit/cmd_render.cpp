@@ -77,20 +77,6 @@ void flatten(const baker::Scene& scene, std::vector<runtime::RenderVertex>& vert
     }
 }
 
-runtime::PunctualLight toRuntime(const baker::PunctualLight& light) {
-    runtime::PunctualLight out;
-    out.type = light.type == baker::LightType::Point  ? runtime::LightType::Point
-               : light.type == baker::LightType::Spot ? runtime::LightType::Spot
-                                                      : runtime::LightType::Directional;
-    out.position = light.position;
-    out.direction = light.direction;
-    out.intensity = light.intensity;
-    out.range = light.range;
-    out.innerConeCos = light.innerConeCos;
-    out.outerConeCos = light.outerConeCos;
-    return out;
-}
-
 // What the default camera frames: the scene, or the volumes when the scene has no triangles.
 grid::Aabb framedBox(const baker::Scene& scene, const std::vector<Volume>& volumes) {
     if (scene.hasGeometry()) {
@@ -267,7 +253,7 @@ int runRender(const RenderOptions& o) {
                                         std::begin(views));
     settings.directLight = o.directLight;
     if (o.directLight) {
-        for (const baker::PunctualLight& light : scene.value().lights) {
+        for (const PunctualLight& light : scene.value().lights) {
             if (settings.lights.size() == runtime::kMaxRenderLights) {
                 std::fprintf(stderr,
                              "probekit render: warning: %s: only the first %zu lights "
@@ -275,7 +261,7 @@ int runRender(const RenderOptions& o) {
                              o.scene.c_str(), runtime::kMaxRenderLights);
                 break;
             }
-            settings.lights.push_back(toRuntime(light));
+            settings.lights.push_back(light);
         }
     }
 
