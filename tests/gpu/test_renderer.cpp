@@ -135,6 +135,13 @@ protected:
         }
         return *m_renderer;
     }
+    // Later frames draw the plane (planeMesh); false when the upload fails.
+    bool drawPlane() {
+        std::vector<RenderVertex> vertices;
+        std::vector<uint32_t> indices;
+        planeMesh(vertices, indices);
+        return renderer().setMeshes(vertices, indices).ok();
+    }
     void TearDown() override {
         m_renderer.reset();
         GpuTest::TearDown();
@@ -255,10 +262,7 @@ TEST_F(Renderer, DirectLightMatchesItsCpuTwin) {
         makeTestVolume(planeVolumeSpec(), [](glm::vec3) { return sh::ShRgb{}; })};
     Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
     ASSERT_TRUE(gpu.ok()) << gpu.error().message;
-    std::vector<RenderVertex> vertices;
-    std::vector<uint32_t> indices;
-    planeMesh(vertices, indices);
-    ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+    ASSERT_TRUE(drawPlane());
 
     PunctualLight point;
     point.position = glm::vec3(0.3f, 0.7f, 0.2f);
