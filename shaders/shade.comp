@@ -23,9 +23,11 @@ layout(set = 1, binding = 4, rgba16f) uniform readonly image2D g_emission;
 layout(set = 1, binding = 5, r32ui) uniform readonly uimage2D g_id;
 layout(set = 1, binding = 6, rgba32f) uniform writeonly image2D out_color;
 
-// Unshadowed irradiance from the frame's punctual lights on a surface at p with normal n. The
-// light term mirrors probekit::baker::PunctualLight::irradianceAt (baker/src/scene.cpp): I / d^2,
-// KHR_lights_punctual's range window, the glTF spot cone ramp; times max(0, n . l).
+// Unshadowed irradiance from the frame's punctual lights on a surface at p with normal n. CPU
+// twin: the sum over the lights of probekit::irradianceAt (formats/include/probekit/formats/
+// light.hpp), mirrored term for term: I / d^2, KHR_lights_punctual's range window (rangeWindow),
+// the glTF spot cone ramp (normalIrradianceAt), times max(0, n . l). The baker's integrators use
+// the same functions, so rendered direct light matches what a bake with direct light stores.
 vec3 pk_direct_irradiance(vec3 p, vec3 n) {
     vec3 e = vec3(0.0);
     for (uint i = 0u; i < pk_frame.info.y; ++i) {

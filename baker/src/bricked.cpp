@@ -474,7 +474,7 @@ public:
             if (!to_light || m_tracer->occluded(p, to_light->direction, to_light->distance)) {
                 continue;
             }
-            value += sh::projectDelta(to_light->direction, light.irradianceAt(p), m_order);
+            value += sh::projectDelta(to_light->direction, normalIrradianceAt(light, p), m_order);
         }
         return m_cache.emplace(key, value).first->second;
     }

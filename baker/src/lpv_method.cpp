@@ -27,7 +27,7 @@ constexpr uint64_t kEmitterSampleKey = 0x4c50565f656d6974ull;
 // distance d (where the range window is 1) times d^2.
 glm::vec3 punctualIntensity(const PunctualLight& light, glm::vec3 w) {
     constexpr float kNear = 1e-3f;
-    return light.irradianceAt(light.position + kNear * w) * (kNear * kNear);
+    return normalIrradianceAt(light, light.position + kNear * w) * (kNear * kNear);
 }
 
 std::vector<LpvSurfaceLight> emitterLights(const Scene& scene, uint32_t count, uint64_t seed) {

@@ -68,7 +68,7 @@ ProbeSample PathIntegrator::bakeProbe(glm::vec3 position, uint64_t seed, uint32_
         if (!to_light) {
             continue;
         }
-        const glm::vec3 irradiance = light.irradianceAt(position);
+        const glm::vec3 irradiance = normalIrradianceAt(light, position);
         if (isBlack(irradiance)) {
             continue;
         }
@@ -225,7 +225,7 @@ glm::vec3 PathIntegrator::directLight(glm::vec3 position, glm::vec3 offset_origi
         if (cos_theta <= 0.0f) {
             continue;
         }
-        const glm::vec3 irradiance = light.irradianceAt(position);
+        const glm::vec3 irradiance = normalIrradianceAt(light, position);
         if (isBlack(irradiance)) {
             continue;
         }

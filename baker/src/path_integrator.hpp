@@ -14,7 +14,7 @@
 //    arriving ray. Emission seen directly from the probe counts fully (the probe is not a
 //    surface and samples no lights).
 //  * At every diffuse vertex: next-event estimation to (a) every punctual light (point, spot,
-//    directional: PunctualLight::irradianceAt x cos x albedo / pi, one shadow ray each),
+//    directional: normalIrradianceAt x cos x albedo / pi, one shadow ray each),
 //    (b) one emissive-triangle sample (LightSampler), (c) one environment sample for lat-long
 //    maps (LightSampler). (b) and (c) are combined with the cosine-sampled continuation by
 //    multiple importance sampling with the power heuristic (Veach 1997, ch. 9). A constant
@@ -28,8 +28,8 @@
 //    so reference scenes need far more than the default 8 (the Cornell reference uses 64).
 //
 // Punctual and directional lights are deltas: no sampled direction can hit them, so their
-// direct light at the probe is added analytically, projectDelta(dir to light, irradianceAt(p))
-// when the shadow ray from the probe is unoccluded.
+// direct light at the probe is added analytically, projectDelta(dir to light,
+// normalIrradianceAt(p)) when the shadow ray from the probe is unoccluded.
 #pragma once
 
 #include <cstdint>

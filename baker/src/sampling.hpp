@@ -7,14 +7,10 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
-#include <optional>
 
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
-
-#include "probekit/baker/scene.hpp"
-#include "ray_tracer.hpp"
 
 namespace probekit::baker {
 
@@ -41,24 +37,6 @@ inline bool isBlack(glm::vec3 v) {
 // sampling densities and error measures (never to change an estimator's expectation).
 inline double luminance(glm::vec3 c) {
     return 0.2126 * double(c.x) + 0.7152 * double(c.y) + 0.0722 * double(c.z);
-}
-
-struct LightDirection {
-    glm::vec3 direction; // unit, from the point towards the light
-    float distance;      // to the light; infinite for directional lights
-};
-
-// Where a punctual light is seen from `point`; nothing for a point or spot light at the point.
-inline std::optional<LightDirection> directionToLight(const PunctualLight& light, glm::vec3 point) {
-    if (light.type == LightType::Directional) {
-        return LightDirection{-glm::normalize(light.direction), kInfinity};
-    }
-    const glm::vec3 offset = light.position - point;
-    const float distance = glm::length(offset);
-    if (!(distance > 0.0f)) {
-        return std::nullopt;
-    }
-    return LightDirection{offset / distance, distance};
 }
 
 // Equal-area map of the unit square onto the sphere: z = 1 - 2u, phi = 2 pi v.

@@ -36,32 +36,6 @@ glm::vec4 Image::sampleBilinear(glm::vec2 uv) const {
     return glm::mix(top, bottom, ty);
 }
 
-glm::vec3 PunctualLight::irradianceAt(glm::vec3 point) const {
-    if (type == LightType::Directional) {
-        return intensity;
-    }
-    const glm::vec3 to_point = point - position;
-    const float d2 = glm::dot(to_point, to_point);
-    if (d2 <= 0.0f) {
-        return glm::vec3(0.0f);
-    }
-    float attenuation = 1.0f / d2;
-    if (range > 0.0f) {
-        // KHR_lights_punctual's recommended window: smooth to zero at `range`.
-        const float r = d2 / (range * range);
-        const float window = std::clamp(1.0f - r * r, 0.0f, 1.0f);
-        attenuation *= window * window;
-    }
-    if (type == LightType::Spot) {
-        // glTF spot falloff: smoothstep-free quadratic ramp between the outer and inner cones.
-        const float cos_angle = glm::dot(direction, to_point / std::sqrt(d2));
-        const float scale = 1.0f / std::max(0.001f, innerConeCos - outerConeCos);
-        const float t = std::clamp((cos_angle - outerConeCos) * scale, 0.0f, 1.0f);
-        attenuation *= t * t;
-    }
-    return intensity * attenuation;
-}
-
 glm::vec3 Environment::radiance(glm::vec3 dir) const {
     if (type == Type::Constant) {
         return constant * intensity;

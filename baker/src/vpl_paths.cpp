@@ -115,7 +115,7 @@ struct SpotProfile {
     double rampMass; // 2 pi (c1 - cos_outer)^3 s^2 / 3
 
     explicit SpotProfile(const PunctualLight& light) {
-        // The same slope as PunctualLight::irradianceAt.
+        // The same slope as normalIrradianceAt (formats/light.hpp).
         const double s = 1.0 / std::max(0.001, double(light.innerConeCos - light.outerConeCos));
         cosOuter = light.outerConeCos;
         const double c1_exact = std::min(1.0, double(light.outerConeCos) + 1.0 / s);
@@ -229,10 +229,8 @@ public:
                 break;
             }
             if (bounce == 1 && start->range > 0.0f) {
-                // KHR_lights_punctual's window, as in PunctualLight::irradianceAt.
-                const float r = hit->t * hit->t / (start->range * start->range);
-                const float window = std::clamp(1.0f - r * r, 0.0f, 1.0f);
-                flux *= window * window;
+                // KHR_lights_punctual's window, as normalIrradianceAt applies it.
+                flux *= rangeWindow(start->range, hit->t * hit->t);
             }
             const glm::vec3 albedo = m_scene.albedoAt(hit->triangle, hit->bary);
             if (isBlack(albedo) || isBlack(flux)) {

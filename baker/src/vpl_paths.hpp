@@ -6,7 +6,7 @@
 //  * point light of intensity I (W/sr): power 4 pi I, direction uniform on the sphere;
 //  * spot light: power I x the integral of the glTF cone falloff over the sphere,
 //    2 pi [(1 - c1) + (c1 - cos_outer)^3 s^2 / 3] with s = 1 / max(0.001, cos_inner -
-//    cos_outer) and c1 = min(1, cos_outer + 1 / s) (PunctualLight::irradianceAt's ramp, squared);
+//    cos_outer) and c1 = min(1, cos_outer + 1 / s) (normalIrradianceAt's ramp, squared);
 //    the direction is sampled exactly proportional to the falloff, so every path of a spot
 //    carries the same flux;
 //  * directional light of irradiance E (W/m^2): power E pi R^2 through a disc of radius R

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <string>
+#include <utility>
 
 #include <glm/ext/matrix_clip_space.hpp>
 #include <glm/ext/matrix_transform.hpp>
@@ -152,7 +153,15 @@ struct Renderer::Impl {
     VkDevice device() const { return context->device(); }
     void destroyTargets();
     Result<void> createTargets(uint32_t w, uint32_t h);
+    // Render pass, layouts and every pipeline, one function each.
     Result<void> createPipelines();
+    Result<void> createRenderPass();
+    Result<void> createLayouts();
+    Result<void> createMeshPipeline(VkShaderModule vertex, VkShaderModule fragment);
+    Result<void> createProbePipeline(VkShaderModule vertex, VkShaderModule fragment);
+    Result<void> createGBufferPipeline(VkShaderModule vertex, VkShaderModule fragment,
+                                       const VkPipelineVertexInputStateCreateInfo& input,
+                                       VkPipeline& pipeline);
     Result<void> writeInstances(const GpuVolumeSet& volumes, const FrameSettings& settings,
                                 uint32_t& count);
     void record(VkCommandBuffer cmd, GpuVolumeSet& volumes, const FrameSettings& settings,
@@ -283,10 +292,81 @@ Result<void> Renderer::Impl::createTargets(uint32_t w, uint32_t h) {
     return {};
 }
 
-Result<void> Renderer::Impl::createPipelines() {
-    const VkDevice d = device();
-    // Render pass: four colour targets and depth, cleared; left in GENERAL for the shading
-    // pass's storage-image reads and the readback copies.
+namespace {
+
+// What both kinds of pipeline creation report on failure (one message, as before the pipelines
+// were created one function each).
+constexpr const char* kPipelineCalls = "vkCreateGraphicsPipelines/vkCreateComputePipelines";
+
+// The renderer's shader modules, alive only while its pipelines are created.
+class ShaderModules {
+public:
+    enum Index : size_t {
+        GBufferVert,
+        ProbeSphereVert,
+        GBufferFrag,
+        Shade,
+        ShadeProbeViews,
+        ShadeFetchOnly,
+        kCount
+    };
+
+    explicit ShaderModules(VkDevice device) : m_device(device) {}
+    ShaderModules(const ShaderModules&) = delete;
+    ShaderModules& operator=(const ShaderModules&) = delete;
+    ~ShaderModules() {
+        for (VkShaderModule m : m_modules) {
+            if (m != VK_NULL_HANDLE) {
+                vkDestroyShaderModule(m_device, m, nullptr);
+            }
+        }
+    }
+
+    Result<void> load() {
+        const std::span<const uint32_t> codes[kCount] = {
+            detail::spirv::gbufferVert(),         detail::spirv::probeSphereVert(),
+            detail::spirv::gbufferFrag(),         detail::spirv::shadeComp(),
+            detail::spirv::shadeProbeViewsComp(), detail::spirv::shadeFetchOnlyComp()};
+        for (size_t i = 0; i < kCount; ++i) {
+            Result<VkShaderModule> module = detail::createShaderModule(m_device, codes[i]);
+            if (!module) {
+                return module.error();
+            }
+            m_modules[i] = module.value();
+        }
+        return {};
+    }
+
+    VkShaderModule operator[](Index i) const { return m_modules[i]; }
+
+private:
+    VkDevice m_device;
+    std::array<VkShaderModule, kCount> m_modules{};
+};
+
+// One shading pipeline: `module` with pk_visibility_mode specialised to `visibility_mode`.
+Result<void> createShadePipeline(VkDevice d, VkShaderModule module, VkPipelineLayout layout,
+                                 uint32_t visibility_mode, VkPipeline& pipeline) {
+    const VkSpecializationMapEntry visibility_entry{PK_CONSTANT_VISIBILITY, 0, sizeof(uint32_t)};
+    const VkSpecializationInfo specialization{1, &visibility_entry, sizeof(visibility_mode),
+                                              &visibility_mode};
+    VkComputePipelineCreateInfo info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+    info.stage.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
+    info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+    info.stage.module = module;
+    info.stage.pName = "main";
+    info.stage.pSpecializationInfo = &specialization;
+    info.layout = layout;
+    const VkResult r = vkCreateComputePipelines(d, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline);
+    if (r != VK_SUCCESS) {
+        return detail::vulkanError(kPipelineCalls, r);
+    }
+    return {};
+}
+
+// The G-buffer targets (colour, then depth), cleared; the colour targets are left in GENERAL for
+// the shading pass's storage-image reads and the readback copies.
+std::array<VkAttachmentDescription, kAttachments> gbufferAttachments() {
     std::array<VkAttachmentDescription, kAttachments> attachments{};
     const VkFormat formats[kAttachments] = {kPositionFormat, kNormalFormat, kAlbedoFormat,
                                             kEmissionFormat, kIdFormat,     kDepthFormat};
@@ -303,17 +383,12 @@ Result<void> Renderer::Impl::createPipelines() {
                                          ? VK_IMAGE_LAYOUT_GENERAL
                                          : VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL;
     }
-    VkAttachmentReference color_refs[kColorTargets];
-    for (uint32_t i = 0; i < kColorTargets; ++i) {
-        color_refs[i] = {i, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL};
-    }
-    const VkAttachmentReference depth_ref{kColorTargets,
-                                          VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL};
-    VkSubpassDescription subpass{};
-    subpass.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS;
-    subpass.colorAttachmentCount = kColorTargets;
-    subpass.pColorAttachments = color_refs;
-    subpass.pDepthStencilAttachment = &depth_ref;
+    return attachments;
+}
+
+// What orders the G-buffer pass against the shading pass and the readback copies, from one
+// frame to the next.
+std::array<VkSubpassDependency, 2> gbufferDependencies() {
     std::array<VkSubpassDependency, 2> dependencies{};
     // The previous frame's shading reads and readback copies finish before the targets are
     // cleared and drawn again (write-after-read), and its depth writes before depth is cleared.
@@ -337,6 +412,49 @@ Result<void> Renderer::Impl::createPipelines() {
     dependencies[1].dstStageMask =
         VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT;
     dependencies[1].dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT;
+    return dependencies;
+}
+
+} // namespace
+
+Result<void> Renderer::Impl::createPipelines() {
+    PK_TRY(createRenderPass());
+    PK_TRY(createLayouts());
+    ShaderModules modules(device());
+    PK_TRY(modules.load());
+    PK_TRY(createMeshPipeline(modules[ShaderModules::GBufferVert],
+                              modules[ShaderModules::GBufferFrag]));
+    PK_TRY(createProbePipeline(modules[ShaderModules::ProbeSphereVert],
+                               modules[ShaderModules::GBufferFrag]));
+    // Each shading variant twice: [0] without visibility, [1] with the device's mode.
+    const std::pair<VkShaderModule, VkPipeline*> shading[3] = {
+        {modules[ShaderModules::Shade], shadePipeline},
+        {modules[ShaderModules::ShadeProbeViews], probeViewsPipeline},
+        {modules[ShaderModules::ShadeFetchOnly], fetchOnlyPipeline}};
+    for (const auto& [module, pipelines] : shading) {
+        for (uint32_t enabled = 0; enabled < 2; ++enabled) {
+            PK_TRY(createShadePipeline(device(), module, shadePipelineLayout,
+                                       enabled ? visibilityMode : PK_VISIBILITY_OFF,
+                                       pipelines[enabled]));
+        }
+    }
+    return {};
+}
+
+Result<void> Renderer::Impl::createRenderPass() {
+    const std::array<VkAttachmentDescription, kAttachments> attachments = gbufferAttachments();
+    const std::array<VkSubpassDependency, 2> dependencies = gbufferDependencies();
+    VkAttachmentReference color_refs[kColorTargets];
+    for (uint32_t i = 0; i < kColorTargets; ++i) {
+        color_refs[i] = {i, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL};
+    }
+    const VkAttachmentReference depth_ref{kColorTargets,
+                                          VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL};
+    VkSubpassDescription subpass{};
+    subpass.pipelineBindPoint = VK_PIPELINE_BIND_POINT_GRAPHICS;
+    subpass.colorAttachmentCount = kColorTargets;
+    subpass.pColorAttachments = color_refs;
+    subpass.pDepthStencilAttachment = &depth_ref;
     VkRenderPassCreateInfo pass{VK_STRUCTURE_TYPE_RENDER_PASS_CREATE_INFO};
     pass.attachmentCount = uint32_t(attachments.size());
     pass.pAttachments = attachments.data();
@@ -344,17 +462,17 @@ Result<void> Renderer::Impl::createPipelines() {
     pass.pSubpasses = &subpass;
     pass.dependencyCount = uint32_t(dependencies.size());
     pass.pDependencies = dependencies.data();
-    PK_VK_TRY(vkCreateRenderPass(d, &pass, nullptr, &renderPass));
+    PK_VK_TRY(vkCreateRenderPass(device(), &pass, nullptr, &renderPass));
+    return {};
+}
 
-    // Descriptor set layouts.
+Result<void> Renderer::Impl::createLayouts() {
+    // G-buffer pass: the frame uniforms alone.
     const VkDescriptorSetLayoutBinding frame_binding{
         0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
         VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
-    VkDescriptorSetLayoutCreateInfo layout_info{
-        VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-    layout_info.bindingCount = 1;
-    layout_info.pBindings = &frame_binding;
-    PK_VK_TRY(vkCreateDescriptorSetLayout(d, &layout_info, nullptr, &frameLayout));
+    PK_TRY(detail::createDescriptorSetLayout(device(), {&frame_binding, 1}, frameLayout));
+    // Shading pass: the frame uniforms, then the G-buffer targets and the output image.
     std::array<VkDescriptorSetLayoutBinding, 1 + kShadeImages> shade_bindings{};
     shade_bindings[0] = {0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT,
                          nullptr};
@@ -362,9 +480,7 @@ Result<void> Renderer::Impl::createPipelines() {
         shade_bindings[i] = {i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, VK_SHADER_STAGE_COMPUTE_BIT,
                              nullptr};
     }
-    layout_info.bindingCount = uint32_t(shade_bindings.size());
-    layout_info.pBindings = shade_bindings.data();
-    PK_VK_TRY(vkCreateDescriptorSetLayout(d, &layout_info, nullptr, &shadeLayout));
+    PK_TRY(detail::createDescriptorSetLayout(device(), shade_bindings, shadeLayout));
     Result<VkDescriptorSetLayout> volume_layout = createVolumeSetLayout(*context);
     if (!volume_layout) {
         return volume_layout.error();
@@ -374,43 +490,64 @@ Result<void> Renderer::Impl::createPipelines() {
     VkPipelineLayoutCreateInfo pipeline_layout{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
     pipeline_layout.setLayoutCount = 1;
     pipeline_layout.pSetLayouts = &frameLayout;
-    PK_VK_TRY(vkCreatePipelineLayout(d, &pipeline_layout, nullptr, &gbufferPipelineLayout));
+    PK_VK_TRY(vkCreatePipelineLayout(device(), &pipeline_layout, nullptr, &gbufferPipelineLayout));
     const VkDescriptorSetLayout shade_sets[2] = {volumeLayout, shadeLayout};
     pipeline_layout.setLayoutCount = 2;
     pipeline_layout.pSetLayouts = shade_sets;
-    PK_VK_TRY(vkCreatePipelineLayout(d, &pipeline_layout, nullptr, &shadePipelineLayout));
+    PK_VK_TRY(vkCreatePipelineLayout(device(), &pipeline_layout, nullptr, &shadePipelineLayout));
+    return {};
+}
 
-    // Shader modules; destroyed once the pipelines exist.
-    std::array<VkShaderModule, 6> modules{};
-    const std::span<const uint32_t> codes[6] = {
-        detail::spirv::gbufferVert(),         detail::spirv::probeSphereVert(),
-        detail::spirv::gbufferFrag(),         detail::spirv::shadeComp(),
-        detail::spirv::shadeProbeViewsComp(), detail::spirv::shadeFetchOnlyComp()};
-    auto destroy_modules = [&] {
-        for (VkShaderModule m : modules) {
-            if (m != VK_NULL_HANDLE) {
-                vkDestroyShaderModule(d, m, nullptr);
-            }
-        }
-    };
-    for (size_t i = 0; i < modules.size(); ++i) {
-        Result<VkShaderModule> module = detail::createShaderModule(d, codes[i]);
-        if (!module) {
-            destroy_modules();
-            return module.error();
-        }
-        modules[i] = module.value();
-    }
+Result<void> Renderer::Impl::createMeshPipeline(VkShaderModule vertex, VkShaderModule fragment) {
+    const VkVertexInputBindingDescription binding{0, sizeof(RenderVertex),
+                                                  VK_VERTEX_INPUT_RATE_VERTEX};
+    const VkVertexInputAttributeDescription attributes[4] = {
+        {0, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, position))},
+        {1, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, normal))},
+        {2, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, albedo))},
+        {3, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, emission))}};
+    VkPipelineVertexInputStateCreateInfo input{
+        VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
+    input.vertexBindingDescriptionCount = 1;
+    input.pVertexBindingDescriptions = &binding;
+    input.vertexAttributeDescriptionCount = 4;
+    input.pVertexAttributeDescriptions = attributes;
+    return createGBufferPipeline(vertex, fragment, input, meshPipeline);
+}
 
-    // Graphics pipelines (meshes, probe spheres): same state, different vertex input.
+Result<void> Renderer::Impl::createProbePipeline(VkShaderModule vertex, VkShaderModule fragment) {
+    // The unit sphere's vertices, then one ProbeInstance per sphere.
+    const VkVertexInputBindingDescription bindings[2] = {
+        {0, sizeof(glm::vec3), VK_VERTEX_INPUT_RATE_VERTEX},
+        {1, sizeof(ProbeInstance), VK_VERTEX_INPUT_RATE_INSTANCE}};
+    const VkVertexInputAttributeDescription attributes[3] = {
+        {0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0},
+        {1, 1, VK_FORMAT_R32G32B32A32_SFLOAT, uint32_t(offsetof(ProbeInstance, centerRadius))},
+        {2, 1, VK_FORMAT_R32_UINT, uint32_t(offsetof(ProbeInstance, id))}};
+    VkPipelineVertexInputStateCreateInfo input{
+        VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
+    input.vertexBindingDescriptionCount = 2;
+    input.pVertexBindingDescriptions = bindings;
+    input.vertexAttributeDescriptionCount = 3;
+    input.pVertexAttributeDescriptions = attributes;
+    return createGBufferPipeline(vertex, fragment, input, probePipeline);
+}
+
+// The state both G-buffer pipelines (meshes, probe spheres) share; only the vertex input and the
+// vertex shader differ.
+Result<void>
+Renderer::Impl::createGBufferPipeline(VkShaderModule vertex, VkShaderModule fragment,
+                                      const VkPipelineVertexInputStateCreateInfo& input,
+                                      VkPipeline& pipeline) {
     VkPipelineShaderStageCreateInfo stages[2]{};
     for (auto& s : stages) {
         s.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
         s.pName = "main";
     }
     stages[0].stage = VK_SHADER_STAGE_VERTEX_BIT;
+    stages[0].module = vertex;
     stages[1].stage = VK_SHADER_STAGE_FRAGMENT_BIT;
-    stages[1].module = modules[2];
+    stages[1].module = fragment;
     VkPipelineInputAssemblyStateCreateInfo assembly{
         VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
     assembly.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
@@ -448,73 +585,24 @@ Result<void> Renderer::Impl::createPipelines() {
     dynamic.dynamicStateCount = 2;
     dynamic.pDynamicStates = dynamic_states;
 
-    const VkVertexInputBindingDescription mesh_binding{0, sizeof(RenderVertex),
-                                                       VK_VERTEX_INPUT_RATE_VERTEX};
-    const VkVertexInputAttributeDescription mesh_attributes[4] = {
-        {0, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, position))},
-        {1, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, normal))},
-        {2, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, albedo))},
-        {3, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, emission))}};
-    const VkVertexInputBindingDescription probe_bindings[2] = {
-        {0, sizeof(glm::vec3), VK_VERTEX_INPUT_RATE_VERTEX},
-        {1, sizeof(ProbeInstance), VK_VERTEX_INPUT_RATE_INSTANCE}};
-    const VkVertexInputAttributeDescription probe_attributes[3] = {
-        {0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0},
-        {1, 1, VK_FORMAT_R32G32B32A32_SFLOAT, uint32_t(offsetof(ProbeInstance, centerRadius))},
-        {2, 1, VK_FORMAT_R32_UINT, uint32_t(offsetof(ProbeInstance, id))}};
-    VkPipelineVertexInputStateCreateInfo inputs[2]{};
-    for (auto& in : inputs) {
-        in.sType = VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO;
-    }
-    inputs[0].vertexBindingDescriptionCount = 1;
-    inputs[0].pVertexBindingDescriptions = &mesh_binding;
-    inputs[0].vertexAttributeDescriptionCount = 4;
-    inputs[0].pVertexAttributeDescriptions = mesh_attributes;
-    inputs[1].vertexBindingDescriptionCount = 2;
-    inputs[1].pVertexBindingDescriptions = probe_bindings;
-    inputs[1].vertexAttributeDescriptionCount = 3;
-    inputs[1].pVertexAttributeDescriptions = probe_attributes;
-
-    VkResult r = VK_SUCCESS;
-    VkPipeline* graphics[2] = {&meshPipeline, &probePipeline};
-    for (int i = 0; i < 2 && r == VK_SUCCESS; ++i) {
-        stages[0].module = modules[size_t(i)];
-        VkGraphicsPipelineCreateInfo info{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
-        info.stageCount = 2;
-        info.pStages = stages;
-        info.pVertexInputState = &inputs[i];
-        info.pInputAssemblyState = &assembly;
-        info.pViewportState = &viewport;
-        info.pRasterizationState = &raster;
-        info.pMultisampleState = &multisample;
-        info.pDepthStencilState = &depth_state;
-        info.pColorBlendState = &blend;
-        info.pDynamicState = &dynamic;
-        info.layout = gbufferPipelineLayout;
-        info.renderPass = renderPass;
-        info.subpass = 0;
-        r = vkCreateGraphicsPipelines(d, VK_NULL_HANDLE, 1, &info, nullptr, graphics[i]);
-    }
-    VkPipeline* computes[3] = {shadePipeline, probeViewsPipeline, fetchOnlyPipeline};
-    const VkSpecializationMapEntry visibility_entry{PK_CONSTANT_VISIBILITY, 0, sizeof(uint32_t)};
-    for (int i = 0; i < 3 && r == VK_SUCCESS; ++i) {
-        for (uint32_t enabled = 0; enabled < 2 && r == VK_SUCCESS; ++enabled) {
-            const uint32_t value = enabled ? visibilityMode : PK_VISIBILITY_OFF;
-            const VkSpecializationInfo specialization{1, &visibility_entry, sizeof(value), &value};
-            VkComputePipelineCreateInfo info{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-            info.stage.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
-            info.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-            info.stage.module = modules[size_t(3 + i)];
-            info.stage.pName = "main";
-            info.stage.pSpecializationInfo = &specialization;
-            info.layout = shadePipelineLayout;
-            r = vkCreateComputePipelines(d, VK_NULL_HANDLE, 1, &info, nullptr,
-                                         &computes[i][enabled]);
-        }
-    }
-    destroy_modules();
+    VkGraphicsPipelineCreateInfo info{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
+    info.stageCount = 2;
+    info.pStages = stages;
+    info.pVertexInputState = &input;
+    info.pInputAssemblyState = &assembly;
+    info.pViewportState = &viewport;
+    info.pRasterizationState = &raster;
+    info.pMultisampleState = &multisample;
+    info.pDepthStencilState = &depth_state;
+    info.pColorBlendState = &blend;
+    info.pDynamicState = &dynamic;
+    info.layout = gbufferPipelineLayout;
+    info.renderPass = renderPass;
+    info.subpass = 0;
+    const VkResult r =
+        vkCreateGraphicsPipelines(device(), VK_NULL_HANDLE, 1, &info, nullptr, &pipeline);
     if (r != VK_SUCCESS) {
-        return detail::vulkanError("vkCreateGraphicsPipelines/vkCreateComputePipelines", r);
+        return detail::vulkanError(kPipelineCalls, r);
     }
     return {};
 }

@@ -174,6 +174,16 @@ Result<VkShaderModule> createShaderModule(VkDevice device, std::span<const uint3
     return module;
 }
 
+Result<void> createDescriptorSetLayout(VkDevice device,
+                                       std::span<const VkDescriptorSetLayoutBinding> bindings,
+                                       VkDescriptorSetLayout& layout) {
+    VkDescriptorSetLayoutCreateInfo info{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+    info.bindingCount = uint32_t(bindings.size());
+    info.pBindings = bindings.data();
+    PK_VK_TRY(vkCreateDescriptorSetLayout(device, &info, nullptr, &layout));
+    return {};
+}
+
 void imageBarrier(VkCommandBuffer cmd, VkImage image, VkImageAspectFlags aspect,
                   VkImageLayout old_layout, VkImageLayout new_layout,
                   VkPipelineStageFlags src_stage, VkAccessFlags src_access,

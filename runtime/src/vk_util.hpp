@@ -63,6 +63,11 @@ void destroy(VkDevice device, Image& image);
 
 Result<VkShaderModule> createShaderModule(VkDevice device, std::span<const uint32_t> code);
 
+// A descriptor set layout of `bindings`, written to `layout`.
+Result<void> createDescriptorSetLayout(VkDevice device,
+                                       std::span<const VkDescriptorSetLayoutBinding> bindings,
+                                       VkDescriptorSetLayout& layout);
+
 // One image layout transition (or same-layout dependency) of a whole single-mip image.
 void imageBarrier(VkCommandBuffer cmd, VkImage image, VkImageAspectFlags aspect,
                   VkImageLayout old_layout, VkImageLayout new_layout,

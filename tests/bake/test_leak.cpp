@@ -91,7 +91,7 @@ baker::Scene twoCentimetreWall(float wall_angle_deg = 0.0f) {
     scene.triangleMaterial.assign(scene.triangles.size(), 0);
     scene.triangleNode.assign(scene.triangles.size(), -1);
     scene.bounds = {glm::vec3(-4.1f, -0.1f, -2.1f), glm::vec3(4.1f, h + 0.1f, 2.1f)};
-    baker::PunctualLight light;
+    PunctualLight light;
     light.position = glm::vec3(-2.0f, 2.0f, -1.0f);
     light.intensity = glm::vec3(40.0f);
     scene.lights.push_back(light);

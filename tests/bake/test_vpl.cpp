@@ -201,7 +201,7 @@ std::vector<PowerCase> powerCases() {
     }
     {
         // Spot light pointing down (outer cone 50 degrees at 1.5 m: the ramp reaches past the
-        // floor's edge on one side). Reference: PunctualLight::irradianceAt x cos over the
+        // floor's edge on one side). Reference: normalIrradianceAt x cos over the
         // floor, the falloff the path method uses.
         PunctualLight spot = pointLight(glm::vec3(0.3f, 1.5f, -0.2f), 5.0f);
         spot.type = LightType::Spot;
@@ -211,7 +211,7 @@ std::vector<PowerCase> powerCases() {
         const double power = integrateSquare(half, 64, [&](double x, double z) {
             const glm::vec3 p(float(x), 0.0f, float(z));
             const glm::vec3 to_light = spot.position - p;
-            return double(spot.irradianceAt(p).x) * double(to_light.y) /
+            return double(normalIrradianceAt(spot, p).x) * double(to_light.y) /
                    double(glm::length(to_light));
         });
         cases.push_back({"spot", [=](SceneBuilder& b) { b.light(spot); }, power});

@@ -135,6 +135,13 @@ protected:
         }
         return *m_renderer;
     }
+    // Later frames draw the plane (planeMesh); false when the upload fails.
+    bool drawPlane() {
+        std::vector<RenderVertex> vertices;
+        std::vector<uint32_t> indices;
+        planeMesh(vertices, indices);
+        return renderer().setMeshes(vertices, indices).ok();
+    }
     void TearDown() override {
         m_renderer.reset();
         GpuTest::TearDown();
@@ -205,55 +212,129 @@ TEST_F(Renderer, FlatPlaneIsAlbedoOverPiTimesE) {
     // Unshadowed direct light on top: a point light, a spot light and a directional light.
     settings.view = RenderView::Shaded;
     settings.directLight = true;
-    runtime::PunctualLight point;
+    PunctualLight point;
     point.position = glm::vec3(0.2f, 0.8f, -0.1f);
     point.intensity = glm::vec3(2.0f, 1.0f, 0.5f);
     point.range = 3.0f;
-    runtime::PunctualLight spot;
-    spot.type = runtime::LightType::Spot;
+    PunctualLight spot;
+    spot.type = LightType::Spot;
     spot.position = glm::vec3(-0.5f, 1.0f, 0.5f);
     spot.direction = glm::normalize(glm::vec3(0.2f, -1.0f, -0.1f));
     spot.intensity = glm::vec3(3.0f);
     spot.innerConeCos = 0.95f;
     spot.outerConeCos = 0.8f;
-    runtime::PunctualLight sun;
-    sun.type = runtime::LightType::Directional;
+    PunctualLight sun;
+    sun.type = LightType::Directional;
     sun.direction = glm::normalize(glm::vec3(0.3f, -1.0f, 0.2f));
     sun.intensity = glm::vec3(0.5f, 0.6f, 0.7f);
     settings.lights = {point, spot, sun};
     Result<Frame> lit = renderer().render(gpu.value(), settings);
     ASSERT_TRUE(lit.ok()) << lit.error().message;
-    // The light terms of baker::PunctualLight::irradianceAt, times the cosine.
+    // The CPU twin of shade.comp's direct light (formats/light.hpp).
     auto direct = [&](glm::vec3 p, glm::vec3 n) {
         glm::vec3 e(0.0f);
-        for (const runtime::PunctualLight& light : settings.lights) {
-            if (light.type == runtime::LightType::Directional) {
-                e += light.intensity * std::max(glm::dot(n, -light.direction), 0.0f);
-                continue;
-            }
-            const glm::vec3 to_point = p - light.position;
-            const float d2 = glm::dot(to_point, to_point);
-            float attenuation = 1.0f / d2;
-            if (light.range > 0.0f) {
-                const float r = d2 / (light.range * light.range);
-                const float window = std::clamp(1.0f - r * r, 0.0f, 1.0f);
-                attenuation *= window * window;
-            }
-            if (light.type == runtime::LightType::Spot) {
-                const float c = glm::dot(light.direction, to_point / std::sqrt(d2));
-                const float t =
-                    std::clamp((c - light.outerConeCos) / (light.innerConeCos - light.outerConeCos),
-                               0.0f, 1.0f);
-                attenuation *= t * t;
-            }
-            e += light.intensity * attenuation *
-                 std::max(glm::dot(n, -to_point / std::sqrt(d2)), 0.0f);
+        for (const PunctualLight& light : settings.lights) {
+            e += irradianceAt(light, p, n);
         }
         return e;
     };
     checkPixels(lit.value(), kShadedRelative, "plane_direct", [&](glm::vec3 p, glm::vec3 n) {
         return kAlbedo / sh::kPi * (cpu.irradiance(p, n) + direct(p, n));
     });
+}
+
+// Direct light alone: a black volume makes pk_irradiance exactly 0, so each pixel of the shaded
+// view is albedo / pi x shade.comp's pk_direct_irradiance, compared with its CPU twin, the sum of
+// irradianceAt over the lights (formats/light.hpp), for each light type alone and all together.
+//
+// Tolerance per pixel: kShadedRelative's albedo term (2^-10, the G-buffer's binary16 albedo) plus
+// 1e-5 for the light terms themselves (about 15 float operations on each side; Vulkan allows
+// 2.5-3 ulp for division and inversesqrt, so a few 1e-7 each), relative to the expected value;
+// plus, for spot lights, the cone ramp's amplification of rounding in its cosine: t = (cos -
+// cos_outer) s turns an error e in cos into at most 2 s e in t^2, with e = 16 ulp of 1 (the
+// normalisation and the dot product on either side), relative to the spot's unramped
+// irradiance (the same light as a point light). Near the cone's outer edge, where t^2 is tiny,
+// only that absolute term can hold, which is why a purely relative check would not do.
+TEST_F(Renderer, DirectLightMatchesItsCpuTwin) {
+    constexpr float kDirectRelative = 1.0f / 1024.0f + 1e-5f;
+    constexpr float kConeCosError = 16.0f * 0x1p-24f;
+    const std::vector<Volume> volumes{
+        makeTestVolume(planeVolumeSpec(), [](glm::vec3) { return sh::ShRgb{}; })};
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+    ASSERT_TRUE(drawPlane());
+
+    PunctualLight point;
+    point.position = glm::vec3(0.3f, 0.7f, 0.2f);
+    point.intensity = glm::vec3(1.5f, 0.75f, 3.0f);
+    point.range = 2.5f;
+    // Its cone (outer half-angle ~37 degrees at 1.1 m) ends on the plane, so the ramp is seen.
+    PunctualLight spot;
+    spot.type = LightType::Spot;
+    spot.position = glm::vec3(-0.2f, 1.1f, -0.1f);
+    spot.direction = glm::normalize(glm::vec3(0.1f, -1.0f, 0.15f));
+    spot.intensity = glm::vec3(4.0f, 2.0f, 1.0f);
+    spot.innerConeCos = 0.95f;
+    spot.outerConeCos = 0.8f;
+    PunctualLight sun;
+    sun.type = LightType::Directional;
+    sun.direction = glm::normalize(glm::vec3(-0.4f, -1.0f, 0.3f));
+    sun.intensity = glm::vec3(0.7f, 0.5f, 0.3f);
+
+    const struct {
+        const char* name;
+        std::vector<PunctualLight> lights;
+    } cases[] = {{"direct_point", {point}},
+                 {"direct_spot", {spot}},
+                 {"direct_sun", {sun}},
+                 {"direct_all", {point, spot, sun}}};
+    for (const auto& c : cases) {
+        FrameSettings settings = planeView(96, 64);
+        settings.directLight = true;
+        settings.lights = c.lights;
+        Result<Frame> frame = renderer().render(gpu.value(), settings);
+        ASSERT_TRUE(frame.ok()) << frame.error().message;
+        const Frame& f = frame.value();
+        size_t covered = 0;
+        size_t lit = 0;
+        size_t failures = 0;
+        float worst = 0.0f; // largest error / allowed error
+        for (size_t i = 0; i < f.color.size(); ++i) {
+            if (f.position[i].w == 0.0f) {
+                continue; // the background: checkPixels covers it in the other tests
+            }
+            ++covered;
+            const glm::vec3 p(f.position[i]);
+            const glm::vec3 n = glm::normalize(glm::vec3(f.normal[i]));
+            glm::vec3 want(0.0f);
+            float allowed = 0.0f;
+            for (const PunctualLight& light : c.lights) {
+                want += kAlbedo / sh::kPi * irradianceAt(light, p, n);
+                if (light.type == LightType::Spot) {
+                    PunctualLight unramped = light;
+                    unramped.type = LightType::Point;
+                    const float slope = 1.0f / (light.innerConeCos - light.outerConeCos);
+                    allowed += 2.0f * slope * kConeCosError *
+                               maxAbs(kAlbedo / sh::kPi * irradianceAt(unramped, p, n));
+                }
+            }
+            allowed += kDirectRelative * maxAbs(want);
+            lit += maxAbs(want) > 0.0f ? 1 : 0;
+            const float error = maxAbs(glm::vec3(f.color[i]) - want);
+            worst =
+                std::max(worst, allowed > 0.0f ? error / allowed : (error > 0.0f ? 1e9f : 0.0f));
+            if (!(error <= allowed) && failures++ == 0) {
+                ADD_FAILURE() << c.name << ": pixel " << i << " at (" << p.x << ", " << p.y << ", "
+                              << p.z << ") is (" << f.color[i].x << ", " << f.color[i].y << ", "
+                              << f.color[i].z << "), expected (" << want.x << ", " << want.y << ", "
+                              << want.z << ") within " << allowed;
+            }
+        }
+        EXPECT_EQ(failures, 0u) << c.name << ": of " << covered << " pixels";
+        EXPECT_GT(lit, covered / 4) << c.name << ": the light should reach much of the plane";
+        std::printf("[ figures  ] %s: %zu pixels (%zu lit), max error / tolerance %.3g\n", c.name,
+                    covered, lit, double(worst));
+    }
 }
 
 // The Cornell box as `probekit render` draws it: flat triangles with their material albedo and

@@ -77,20 +77,6 @@ void flatten(const baker::Scene& scene, std::vector<runtime::RenderVertex>& vert
     }
 }
 
-runtime::PunctualLight toRuntime(const baker::PunctualLight& light) {
-    runtime::PunctualLight out;
-    out.type = light.type == baker::LightType::Point  ? runtime::LightType::Point
-               : light.type == baker::LightType::Spot ? runtime::LightType::Spot
-                                                      : runtime::LightType::Directional;
-    out.position = light.position;
-    out.direction = light.direction;
-    out.intensity = light.intensity;
-    out.range = light.range;
-    out.innerConeCos = light.innerConeCos;
-    out.outerConeCos = light.outerConeCos;
-    return out;
-}
-
 // What the default camera frames: the scene, or the volumes when the scene has no triangles.
 grid::Aabb framedBox(const baker::Scene& scene, const std::vector<Volume>& volumes) {
     if (scene.hasGeometry()) {
@@ -179,32 +165,43 @@ int fail(const std::string& message) {
     return kExitFailure;
 }
 
-int runRender(const RenderOptions& o) {
-    Result<baker::Scene> scene = baker::loadGltf(o.scene);
-    if (!scene) {
-        return fail(scene.error().message);
-    }
-    for (const std::string& w : scene.value().warnings) {
-        std::fprintf(stderr, "probekit render: warning: %s\n", w.c_str());
-    }
-    Result<PvolFile> file = readPvol(o.volumes);
-    if (!file) {
-        return fail(file.error().message);
-    }
-    std::vector<Volume>& volumes = file.value().volumes;
+void dropVisibility(std::vector<Volume>& volumes) {
     for (Volume& v : volumes) {
-        if (o.noVisibility) {
-            v.visibility.clear(); // plain trilinear interpolation
+        v.visibility.clear(); // plain trilinear interpolation
+    }
+}
+
+// The scene, its loader's warnings printed.
+Result<baker::Scene> loadScene(const RenderOptions& o) {
+    Result<baker::Scene> scene = baker::loadGltf(o.scene);
+    if (scene) {
+        for (const std::string& w : scene.value().warnings) {
+            std::fprintf(stderr, "probekit render: warning: %s\n", w.c_str());
         }
     }
-    const bool any_visibility = std::any_of(volumes.begin(), volumes.end(),
-                                            [](const Volume& v) { return v.hasVisibility(); });
-    if (volumes.empty() || volumes.size() > runtime::kMaxGpuVolumes) {
-        return fail(o.volumes + ": " + std::to_string(volumes.size()) +
-                    " volumes; the Vulkan runtime renders 1.." +
-                    std::to_string(runtime::kMaxGpuVolumes));
-    }
+    return scene;
+}
 
+// The .pvol's volumes (without visibility under --no-visibility), as many as the runtime takes.
+Result<std::vector<Volume>> loadVolumes(const RenderOptions& o) {
+    Result<PvolFile> file = readPvol(o.volumes);
+    if (!file) {
+        return file.error();
+    }
+    std::vector<Volume>& volumes = file.value().volumes;
+    if (o.noVisibility) {
+        dropVisibility(volumes);
+    }
+    if (volumes.empty() || volumes.size() > runtime::kMaxGpuVolumes) {
+        return makeError(ErrorCode::OutOfRange, o.volumes + ": " + std::to_string(volumes.size()) +
+                                                    " volumes; the Vulkan runtime renders 1.." +
+                                                    std::to_string(runtime::kMaxGpuVolumes));
+    }
+    return std::move(volumes);
+}
+
+// A Vulkan context whose warnings and errors are printed.
+Result<std::unique_ptr<runtime::GpuContext>> createContext() {
     runtime::ContextOptions context_options;
     context_options.onMessage = [](runtime::MessageSeverity severity, std::string_view message) {
         if (severity != runtime::MessageSeverity::Info) {
@@ -212,178 +209,266 @@ int runRender(const RenderOptions& o) {
                          message.data());
         }
     };
-    Result<std::unique_ptr<runtime::GpuContext>> context =
-        runtime::GpuContext::create(context_options);
-    if (!context) {
-        return fail(context.error().message);
-    }
-    runtime::GpuContext& gpu = *context.value();
+    return runtime::GpuContext::create(context_options);
+}
 
-    const auto upload_start = std::chrono::steady_clock::now();
+// The volumes on the GPU, with the --normal-offset; errors name the .pvol.
+Result<runtime::GpuVolumeSet> uploadVolumes(runtime::GpuContext& gpu,
+                                            const std::vector<Volume>& volumes,
+                                            const RenderOptions& o) {
     Result<runtime::GpuVolumeSet> set = runtime::GpuVolumeSet::create(gpu, volumes);
     if (!set) {
-        return fail(o.volumes + ": " + set.error().message);
+        return makeError(set.error().code, o.volumes + ": " + set.error().message);
     }
-    const double create_ms = millisecondsSince(upload_start);
     set.value().setNormalOffset(o.normalOffset);
+    return set;
+}
 
+// A renderer drawing the scene's triangles.
+Result<runtime::Renderer> createRenderer(runtime::GpuContext& gpu, const baker::Scene& scene) {
     std::vector<runtime::RenderVertex> vertices;
     std::vector<uint32_t> indices;
-    flatten(scene.value(), vertices, indices);
+    flatten(scene, vertices, indices);
     Result<runtime::Renderer> renderer = runtime::Renderer::create(gpu);
     if (!renderer) {
-        return fail(renderer.error().message);
+        return renderer;
     }
     if (auto r = renderer.value().setMeshes(vertices, indices); !r) {
-        return fail(r.error().message);
+        return r.error();
     }
+    return renderer;
+}
 
+// --camera's eye and target, or (without it) the framed box seen along +Z.
+Result<runtime::Camera> chooseCamera(const RenderOptions& o, const grid::Aabb& framed,
+                                     float aspect) {
+    if (o.camera.empty()) {
+        return runtime::frameBounds(framed, o.fovDeg, aspect);
+    }
+    runtime::Camera camera;
+    camera.eye = glm::vec3(o.camera[0], o.camera[1], o.camera[2]);
+    camera.target = glm::vec3(o.camera[3], o.camera[4], o.camera[5]);
+    camera.verticalFovDeg = o.fovDeg;
+    const glm::vec3 forward = camera.target - camera.eye;
+    if (!(glm::length(forward) > 0.0f)) {
+        return makeError(ErrorCode::InvalidArgument, "--camera: the eye and the target coincide");
+    }
+    // Looking straight up or down: +Y cannot be "up", so -Z is.
+    if (glm::length(glm::cross(glm::normalize(forward), glm::vec3(0, 1, 0))) < 1e-4f) {
+        camera.up = glm::vec3(0.0f, 0.0f, -1.0f);
+    }
+    const float reach = glm::length(forward) + glm::length(framed.size()) +
+                        glm::length(camera.eye - framed.center());
+    camera.nearPlane = std::max(1e-4f, 1e-3f * reach);
+    camera.farPlane = 2.0f * reach + 1.0f;
+    return camera;
+}
+
+// The scene's punctual lights for --direct-light, as many as the renderer takes.
+std::vector<PunctualLight> directLights(const RenderOptions& o, const baker::Scene& scene) {
+    std::vector<PunctualLight> lights;
+    for (const PunctualLight& light : scene.lights) {
+        if (lights.size() == runtime::kMaxRenderLights) {
+            std::fprintf(stderr,
+                         "probekit render: warning: %s: only the first %zu lights "
+                         "add direct light\n",
+                         o.scene.c_str(), runtime::kMaxRenderLights);
+            break;
+        }
+        lights.push_back(light);
+    }
+    return lights;
+}
+
+// The frame the options ask for: size, camera, view and direct light.
+Result<runtime::FrameSettings> frameSettings(const RenderOptions& o, const baker::Scene& scene,
+                                             const std::vector<Volume>& volumes) {
     runtime::FrameSettings settings;
     settings.width = o.size[0];
     settings.height = o.size[1];
     const float aspect = float(settings.width) / float(settings.height);
-    const grid::Aabb framed = framedBox(scene.value(), volumes);
-    if (o.camera.empty()) {
-        settings.camera = runtime::frameBounds(framed, o.fovDeg, aspect);
-    } else {
-        settings.camera.eye = glm::vec3(o.camera[0], o.camera[1], o.camera[2]);
-        settings.camera.target = glm::vec3(o.camera[3], o.camera[4], o.camera[5]);
-        settings.camera.verticalFovDeg = o.fovDeg;
-        const glm::vec3 forward = settings.camera.target - settings.camera.eye;
-        if (!(glm::length(forward) > 0.0f)) {
-            return fail("--camera: the eye and the target coincide");
-        }
-        // Looking straight up or down: +Y cannot be "up", so -Z is.
-        if (glm::length(glm::cross(glm::normalize(forward), glm::vec3(0, 1, 0))) < 1e-4f) {
-            settings.camera.up = glm::vec3(0.0f, 0.0f, -1.0f);
-        }
-        const float reach = glm::length(forward) + glm::length(framed.size()) +
-                            glm::length(settings.camera.eye - framed.center());
-        settings.camera.nearPlane = std::max(1e-4f, 1e-3f * reach);
-        settings.camera.farPlane = 2.0f * reach + 1.0f;
+    Result<runtime::Camera> camera = chooseCamera(o, framedBox(scene, volumes), aspect);
+    if (!camera) {
+        return camera.error();
     }
+    settings.camera = camera.value();
     const std::string views[] = {"shaded", "irradiance", "probes", "validity", "leak"};
     settings.view = runtime::RenderView(std::find(std::begin(views), std::end(views), o.view) -
                                         std::begin(views));
     settings.directLight = o.directLight;
     if (o.directLight) {
-        for (const baker::PunctualLight& light : scene.value().lights) {
-            if (settings.lights.size() == runtime::kMaxRenderLights) {
-                std::fprintf(stderr,
-                             "probekit render: warning: %s: only the first %zu lights "
-                             "add direct light\n",
-                             o.scene.c_str(), runtime::kMaxRenderLights);
-                break;
+        settings.lights = directLights(o, scene);
+    }
+    return settings;
+}
+
+// --bench's GPU times per frame, for each volume set ([0] the volumes as given, [1] the same
+// without visibility when they have it).
+struct FrameTimes {
+    std::vector<double> gbufferMs;
+    std::vector<double> shadeMs[2];
+    std::vector<double> fetchOnlyMs[2];
+};
+
+Result<FrameTimes> timeFrames(runtime::Renderer& renderer,
+                              const std::vector<runtime::GpuVolumeSet*>& sets,
+                              runtime::FrameSettings timed, int frames) {
+    timed.readbackColor = false;
+    // Warm-up: pipelines compile on first use (lavapipe) and caches fill.
+    for (int i = 0; i < kWarmupFrames; ++i) {
+        for (runtime::GpuVolumeSet* s : sets) {
+            for (bool fetch_only : {false, true}) {
+                timed.fetchOnly = fetch_only;
+                if (auto r = renderer.render(*s, timed); !r) {
+                    return r.error();
+                }
             }
-            settings.lights.push_back(toRuntime(light));
         }
     }
-
-    nlohmann::json bench;
-    if (o.bench > 0) {
-        runtime::FrameSettings timed = settings;
-        timed.readbackColor = false;
-        // With visibility, the same volumes without it as well (a second set), so the bench
-        // compares the two on the same data.
-        std::vector<runtime::GpuVolumeSet*> sets{&set.value()};
-        std::optional<runtime::GpuVolumeSet> plain_set;
-        if (any_visibility) {
-            std::vector<Volume> plain = volumes;
-            for (Volume& v : plain) {
-                v.visibility.clear();
-            }
-            Result<runtime::GpuVolumeSet> created = runtime::GpuVolumeSet::create(gpu, plain);
-            if (!created) {
-                return fail(o.volumes + ": " + created.error().message);
-            }
-            plain_set.emplace(std::move(created.value()));
-            plain_set->setNormalOffset(o.normalOffset);
-            sets.push_back(&*plain_set);
-        }
-        // Warm-up: pipelines compile on first use (lavapipe) and caches fill.
-        for (int i = 0; i < kWarmupFrames; ++i) {
-            for (runtime::GpuVolumeSet* s : sets) {
-                for (bool fetch_only : {false, true}) {
-                    timed.fetchOnly = fetch_only;
-                    if (auto r = renderer.value().render(*s, timed); !r) {
-                        return fail(r.error().message);
-                    }
+    // Shading and fetch-only frames (of each set) alternate, so all see the same machine load.
+    FrameTimes out;
+    for (int i = 0; i < frames; ++i) {
+        for (size_t k = 0; k < sets.size(); ++k) {
+            for (bool fetch_only : {false, true}) {
+                timed.fetchOnly = fetch_only;
+                Result<runtime::Frame> frame = renderer.render(*sets[k], timed);
+                if (!frame) {
+                    return frame.error();
+                }
+                (fetch_only ? out.fetchOnlyMs : out.shadeMs)[k].push_back(
+                    frame.value().timings.shadeMs);
+                if (!fetch_only && k == 0) {
+                    out.gbufferMs.push_back(frame.value().timings.gbufferMs);
                 }
             }
-        }
-        // Shading and fetch-only frames (of each set) alternate, so all see the same machine
-        // load.
-        std::vector<double> gbuffer_ms, shade_ms[2], fetch_ms[2];
-        for (int i = 0; i < o.bench; ++i) {
-            for (size_t k = 0; k < sets.size(); ++k) {
-                for (bool fetch_only : {false, true}) {
-                    timed.fetchOnly = fetch_only;
-                    Result<runtime::Frame> frame = renderer.value().render(*sets[k], timed);
-                    if (!frame) {
-                        return fail(frame.error().message);
-                    }
-                    (fetch_only ? fetch_ms : shade_ms)[k].push_back(frame.value().timings.shadeMs);
-                    if (!fetch_only && k == 0) {
-                        gbuffer_ms.push_back(frame.value().timings.gbufferMs);
-                    }
-                }
-            }
-        }
-        // Upload throughput: re-uploading every volume (staging copy + GPU copy + wait)
-        // against a plain memcpy of the same bytes.
-        size_t upload_bytes = 0;
-        for (const Volume& v : volumes) {
-            upload_bytes += v.texelBytes() + v.visibilityGpuBytes();
-        }
-        std::vector<double> upload_ms, memcpy_ms;
-        std::vector<uint8_t> source(upload_bytes, 1);
-        std::vector<uint8_t> destination(upload_bytes);
-        for (int r = 0; r < kUploadRepetitions; ++r) {
-            const auto start = std::chrono::steady_clock::now();
-            for (size_t i = 0; i < volumes.size(); ++i) {
-                if (auto u = set.value().replaceVolume(i, volumes[i]); !u) {
-                    return fail(u.error().message);
-                }
-            }
-            upload_ms.push_back(millisecondsSince(start));
-            const auto copy_start = std::chrono::steady_clock::now();
-            std::memcpy(destination.data(), source.data(), upload_bytes);
-            memcpy_ms.push_back(millisecondsSince(copy_start));
-            source[size_t(r) % upload_bytes] ^= destination[upload_bytes - 1];
-        }
-        const double shade = median(shade_ms[0]);
-        const double fetch = median(fetch_ms[0]);
-        const double upload = median(upload_ms);
-        const double copy = std::max(median(memcpy_ms), 1e-6);
-        bench = {{"device", gpu.deviceInfo().name},
-                 {"width", settings.width},
-                 {"height", settings.height},
-                 {"view", o.view},
-                 {"volumes", volumes.size()},
-                 {"frames", o.bench},
-                 {"gbuffer_ms", median(gbuffer_ms)},
-                 {"shade_ms", shade},
-                 {"fetch_only_ms", fetch},
-                 {"shade_over_fetch", shade / fetch},
-                 {"create_ms", create_ms},
-                 {"upload_bytes", upload_bytes},
-                 {"upload_ms", upload},
-                 {"memcpy_ms", copy},
-                 {"upload_gb_per_s", double(upload_bytes) / (upload * 1e6)},
-                 {"memcpy_gb_per_s", double(upload_bytes) / (copy * 1e6)},
-                 {"upload_over_memcpy", upload / copy},
-                 {"visibility", any_visibility}};
-        if (any_visibility) {
-            const double plain_shade = median(shade_ms[1]);
-            const double plain_fetch = median(fetch_ms[1]);
-            bench["shade_no_visibility_ms"] = plain_shade;
-            bench["fetch_only_no_visibility_ms"] = plain_fetch;
-            bench["shade_visibility_over_none"] = shade / plain_shade;
-            bench["fetch_only_visibility_over_none"] = fetch / plain_fetch;
         }
     }
+    return out;
+}
 
-    Result<runtime::Frame> frame = renderer.value().render(set.value(), settings);
+// --bench's upload throughput: re-uploading every volume (staging copy + GPU copy + wait)
+// against a plain memcpy of the same bytes; medians in milliseconds.
+struct UploadTimes {
+    size_t bytes = 0;
+    double uploadMs = 0.0;
+    double memcpyMs = 0.0;
+};
+
+Result<UploadTimes> timeUploads(runtime::GpuVolumeSet& set, const std::vector<Volume>& volumes) {
+    UploadTimes out;
+    for (const Volume& v : volumes) {
+        out.bytes += v.texelBytes() + v.visibilityGpuBytes();
+    }
+    std::vector<double> upload_ms, memcpy_ms;
+    std::vector<uint8_t> source(out.bytes, 1);
+    std::vector<uint8_t> destination(out.bytes);
+    for (int r = 0; r < kUploadRepetitions; ++r) {
+        const auto start = std::chrono::steady_clock::now();
+        for (size_t i = 0; i < volumes.size(); ++i) {
+            if (auto u = set.replaceVolume(i, volumes[i]); !u) {
+                return u.error();
+            }
+        }
+        upload_ms.push_back(millisecondsSince(start));
+        const auto copy_start = std::chrono::steady_clock::now();
+        std::memcpy(destination.data(), source.data(), out.bytes);
+        memcpy_ms.push_back(millisecondsSince(copy_start));
+        source[size_t(r) % out.bytes] ^= destination[out.bytes - 1];
+    }
+    out.uploadMs = median(upload_ms);
+    out.memcpyMs = std::max(median(memcpy_ms), 1e-6);
+    return out;
+}
+
+// What --bench prints, one JSON object.
+struct BenchRun {
+    std::string device;
+    size_t volumes = 0;
+    double createMs = 0.0; // the first upload, GpuVolumeSet::create
+    bool visibility = false;
+    FrameTimes frames;
+    UploadTimes uploads;
+};
+
+nlohmann::json benchReport(const RenderOptions& o, const runtime::FrameSettings& settings,
+                           const BenchRun& run) {
+    const double shade = median(run.frames.shadeMs[0]);
+    const double fetch = median(run.frames.fetchOnlyMs[0]);
+    const double upload = run.uploads.uploadMs;
+    const double copy = run.uploads.memcpyMs;
+    nlohmann::json bench = {{"device", run.device},
+                            {"width", settings.width},
+                            {"height", settings.height},
+                            {"view", o.view},
+                            {"volumes", run.volumes},
+                            {"frames", o.bench},
+                            {"gbuffer_ms", median(run.frames.gbufferMs)},
+                            {"shade_ms", shade},
+                            {"fetch_only_ms", fetch},
+                            {"shade_over_fetch", shade / fetch},
+                            {"create_ms", run.createMs},
+                            {"upload_bytes", run.uploads.bytes},
+                            {"upload_ms", upload},
+                            {"memcpy_ms", copy},
+                            {"upload_gb_per_s", double(run.uploads.bytes) / (upload * 1e6)},
+                            {"memcpy_gb_per_s", double(run.uploads.bytes) / (copy * 1e6)},
+                            {"upload_over_memcpy", upload / copy},
+                            {"visibility", run.visibility}};
+    if (run.visibility) {
+        const double plain_shade = median(run.frames.shadeMs[1]);
+        const double plain_fetch = median(run.frames.fetchOnlyMs[1]);
+        bench["shade_no_visibility_ms"] = plain_shade;
+        bench["fetch_only_no_visibility_ms"] = plain_fetch;
+        bench["shade_visibility_over_none"] = shade / plain_shade;
+        bench["fetch_only_visibility_over_none"] = fetch / plain_fetch;
+    }
+    return bench;
+}
+
+// --bench N: N timed frames of the shading pass and its fetch-only floor (with visibility, of
+// the same volumes without it as well: a second set, so the two are compared on the same
+// data), then the upload; the report.
+Result<nlohmann::json> runBench(const RenderOptions& o, runtime::GpuContext& gpu,
+                                runtime::Renderer& renderer, runtime::GpuVolumeSet& set,
+                                const std::vector<Volume>& volumes,
+                                const runtime::FrameSettings& settings, double create_ms) {
+    BenchRun run;
+    run.device = gpu.deviceInfo().name;
+    run.volumes = volumes.size();
+    run.createMs = create_ms;
+    run.visibility = std::any_of(volumes.begin(), volumes.end(),
+                                 [](const Volume& v) { return v.hasVisibility(); });
+    std::vector<runtime::GpuVolumeSet*> sets{&set};
+    std::optional<runtime::GpuVolumeSet> plain_set;
+    if (run.visibility) {
+        std::vector<Volume> plain = volumes;
+        dropVisibility(plain);
+        Result<runtime::GpuVolumeSet> created = uploadVolumes(gpu, plain, o);
+        if (!created) {
+            return created.error();
+        }
+        plain_set.emplace(std::move(created.value()));
+        sets.push_back(&*plain_set);
+    }
+    Result<FrameTimes> frames = timeFrames(renderer, sets, settings, o.bench);
+    if (!frames) {
+        return frames.error();
+    }
+    run.frames = std::move(frames.value());
+    Result<UploadTimes> uploads = timeUploads(set, volumes);
+    if (!uploads) {
+        return uploads.error();
+    }
+    run.uploads = uploads.value();
+    return benchReport(o, settings, run);
+}
+
+// The frame itself: rendered, written, and reported (the --bench report, or one line).
+int renderAndWrite(const RenderOptions& o, const runtime::GpuContext& gpu,
+                   runtime::Renderer& renderer, runtime::GpuVolumeSet& set,
+                   const runtime::FrameSettings& settings, size_t volume_count,
+                   const std::optional<nlohmann::json>& bench) {
+    Result<runtime::Frame> frame = renderer.render(set, settings);
     if (!frame) {
         return fail(frame.error().message);
     }
@@ -391,16 +476,57 @@ int runRender(const RenderOptions& o) {
     if (!writeImage(o.output, frame.value(), o.exposure, error)) {
         return fail(o.output + ": " + error);
     }
-    if (o.bench > 0) {
-        std::printf("%s\n", bench.dump().c_str());
+    if (bench) {
+        std::printf("%s\n", bench->dump().c_str());
     } else {
         std::printf("wrote %s: %ux%u, %s view, %zu volume%s on %s; G-buffer %.2f ms, shading "
                     "%.2f ms\n",
-                    o.output.c_str(), settings.width, settings.height, o.view.c_str(),
-                    volumes.size(), volumes.size() == 1 ? "" : "s", gpu.deviceInfo().name.c_str(),
+                    o.output.c_str(), settings.width, settings.height, o.view.c_str(), volume_count,
+                    volume_count == 1 ? "" : "s", gpu.deviceInfo().name.c_str(),
                     frame.value().timings.gbufferMs, frame.value().timings.shadeMs);
     }
     return kExitOk;
+}
+
+int runRender(const RenderOptions& o) {
+    Result<baker::Scene> scene = loadScene(o);
+    if (!scene) {
+        return fail(scene.error().message);
+    }
+    Result<std::vector<Volume>> volumes = loadVolumes(o);
+    if (!volumes) {
+        return fail(volumes.error().message);
+    }
+    Result<std::unique_ptr<runtime::GpuContext>> context = createContext();
+    if (!context) {
+        return fail(context.error().message);
+    }
+    runtime::GpuContext& gpu = *context.value();
+    const auto upload_start = std::chrono::steady_clock::now();
+    Result<runtime::GpuVolumeSet> set = uploadVolumes(gpu, volumes.value(), o);
+    if (!set) {
+        return fail(set.error().message);
+    }
+    const double create_ms = millisecondsSince(upload_start);
+    Result<runtime::Renderer> renderer = createRenderer(gpu, scene.value());
+    if (!renderer) {
+        return fail(renderer.error().message);
+    }
+    Result<runtime::FrameSettings> settings = frameSettings(o, scene.value(), volumes.value());
+    if (!settings) {
+        return fail(settings.error().message);
+    }
+    std::optional<nlohmann::json> bench;
+    if (o.bench > 0) {
+        Result<nlohmann::json> report = runBench(o, gpu, renderer.value(), set.value(),
+                                                 volumes.value(), settings.value(), create_ms);
+        if (!report) {
+            return fail(report.error().message);
+        }
+        bench = std::move(report.value());
+    }
+    return renderAndWrite(o, gpu, renderer.value(), set.value(), settings.value(),
+                          volumes.value().size(), bench);
 }
 
 } // namespace

@@ -21,6 +21,7 @@
 #include <glm/vec4.hpp>
 
 #include "probekit/formats/grid.hpp"
+#include "probekit/formats/light.hpp"
 #include "probekit/formats/result.hpp"
 
 namespace probekit::baker {
@@ -45,25 +46,6 @@ struct Material {
     int baseColorTexCoord = 0; // which TEXCOORD_n set (only 0 is loaded; others warn)
 
     bool isEmissive() const { return emission.x > 0 || emission.y > 0 || emission.z > 0; }
-};
-
-enum class LightType : uint8_t { Point, Spot, Directional };
-
-// KHR_lights_punctual, converted to world space and radiometric units.
-struct PunctualLight {
-    LightType type = LightType::Point;
-    glm::vec3 position{0.0f};      // world, metres (point, spot)
-    glm::vec3 direction{0, 0, -1}; // world unit vector the light travels along (spot, directional)
-    glm::vec3 intensity{0.0f};     // colour x intensity: W/sr (point, spot) or W/m^2 (directional)
-    float range = 0.0f;            // metres; 0 = infinite
-    float innerConeCos = 1.0f;     // spot: cos(innerConeAngle)
-    float outerConeCos = 0.70710678f; // spot: cos(outerConeAngle), default pi/4
-    std::string name;
-
-    // Irradiance a surface facing the light receives at `point` (W/m^2), without visibility:
-    // I / d^2 x glTF spot cone falloff x range window (KHR_lights_punctual's recommended
-    // smooth window clamp(1 - (d / range)^4, 0, 1)^2). For a directional light, intensity.
-    glm::vec3 irradianceAt(glm::vec3 point) const;
 };
 
 // Radiance arriving from infinitely far away in direction `dir` (pointing away from the scene).
@@ -109,9 +91,9 @@ struct Scene {
     std::vector<uint32_t> triangleMaterial; // per triangle, index into materials
     std::vector<int32_t> triangleNode;      // per triangle, index into nodes
 
-    std::vector<Material> materials; // always holds at least one (the glTF default)
-    std::vector<Image> images;       // linear RGBA
-    std::vector<PunctualLight> lights;
+    std::vector<Material> materials;   // always holds at least one (the glTF default)
+    std::vector<Image> images;         // linear RGBA
+    std::vector<PunctualLight> lights; // KHR_lights_punctual (formats/light.hpp)
     Environment environment;
     std::vector<SceneNode> nodes; // every node of the chosen scene, in glTF order
 

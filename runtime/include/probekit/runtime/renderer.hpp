@@ -32,6 +32,7 @@
 #include <glm/vec4.hpp>
 
 #include "probekit/formats/grid.hpp"
+#include "probekit/formats/light.hpp"
 #include "probekit/formats/result.hpp"
 #include "probekit/runtime/gpu_context.hpp"
 #include "probekit/runtime/gpu_volumes.hpp"
@@ -78,20 +79,6 @@ enum class RenderView : uint32_t {
                     // (v = 0, plain trilinear interpolation would leak light through a wall)
 };
 
-enum class LightType : uint8_t { Point, Spot, Directional };
-
-// A KHR_lights_punctual light, already in world space and radiometric units
-// (formats/CONVENTIONS.md). Direct light is unshadowed: there is no ray tracing here.
-struct PunctualLight {
-    LightType type = LightType::Point;
-    glm::vec3 position{0.0f};               // metres (point, spot)
-    glm::vec3 direction{0.0f, 0.0f, -1.0f}; // unit, the direction light travels (spot, dir.)
-    glm::vec3 intensity{0.0f};              // W/sr (point, spot) or W/m^2 (directional)
-    float range = 0.0f;                     // metres; 0 = infinite
-    float innerConeCos = 1.0f;              // spot: cos(inner cone angle)
-    float outerConeCos = 0.70710678f;       // spot: cos(outer cone angle)
-};
-
 constexpr size_t kMaxRenderLights = 8;
 
 struct FrameSettings {
@@ -99,8 +86,10 @@ struct FrameSettings {
     uint32_t height = 480; // pixels
     Camera camera;
     RenderView view = RenderView::Shaded;
-    // Add unshadowed direct light from `lights` (for volumes baked without it). Shaded and
-    // probes views only.
+    // Add unshadowed direct light from `lights` (for volumes baked without it): per pixel the
+    // sum of irradianceAt (formats/light.hpp) over the lights, which the shading pass mirrors
+    // (pk_direct_irradiance, shaders/shade.comp). Shaded and probes views only; the light's
+    // name is not used.
     bool directLight = false;
     std::vector<PunctualLight> lights; // at most kMaxRenderLights
     // Probe sphere radius in metres; 0 = 0.15 x each volume's smallest probe spacing.
