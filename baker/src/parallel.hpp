@@ -30,8 +30,9 @@ inline size_t loopThreads(size_t count, uint32_t threads, size_t chunk) {
 
 // Starts `started` threads that call body(begin, end) on ranges of at most `chunk` indices
 // covering [0, count), handed out in order as threads become free, then runs
-// caller(work, done) on the calling thread: `work` takes ranges like the started threads,
-// done() says whether every started thread has run out of ranges. Returns after joining them.
+// caller(work, done) on the calling thread: work() takes ranges like the started threads,
+// done(wait) waits up to `wait` for every started thread to run out of ranges and says whether
+// they have. Returns after joining them.
 template <class Body, class Caller>
 void runRanges(size_t count, size_t chunk, size_t started, const Body& body, const Caller& caller) {
     std::atomic<size_t> next{0};
