@@ -1,4 +1,5 @@
-// The bake: volume placement, the probe loop on a thread pool, validity and dilation.
+// The bake: volume placement, the probe loop on the baker's parallel loop (parallel.hpp),
+// validity and dilation.
 #include <algorithm>
 #include <atomic>
 #include <bit>
@@ -6,7 +7,7 @@
 #include <cmath>
 #include <numbers>
 #include <optional>
-#include <thread>
+#include <span>
 
 #include <sys/resource.h>
 
@@ -15,6 +16,7 @@
 
 #include "bricked.hpp"
 #include "lpv_method.hpp"
+#include "parallel.hpp"
 #include "path_integrator.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/settings.hpp"
@@ -26,6 +28,15 @@
 
 namespace probekit::baker {
 namespace {
+
+// The volumes a config bakes: those it lists, or one with the defaults when it lists none.
+std::vector<VolumeConfig> volumeConfigs(const BakeConfig& config) {
+    std::vector<VolumeConfig> configs = config.volumes;
+    if (configs.empty()) {
+        configs.push_back(VolumeConfig{});
+    }
+    return configs;
+}
 
 std::string volumeLabel(size_t index, const VolumeConfig& v) {
     return "volumes[" + std::to_string(index) + "] ('" + v.name + "')";
@@ -148,10 +159,7 @@ glm::vec3 probeSpacing(const VolumeDesc& desc) {
 }
 
 Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeConfig& config) {
-    std::vector<VolumeConfig> configs = config.volumes;
-    if (configs.empty()) {
-        configs.push_back(VolumeConfig{});
-    }
+    const std::vector<VolumeConfig> configs = volumeConfigs(config);
     std::vector<VolumeDesc> out;
     for (size_t index = 0; index < configs.size(); ++index) {
         const VolumeConfig& v = configs[index];
@@ -321,6 +329,295 @@ uint64_t estimateBakeMemory(const std::vector<VolumeDesc>& volumes) {
     return total;
 }
 
+namespace {
+
+// What every phase of one bake shares: its inputs, the tracer, the thread count and the
+// counters the probe threads update.
+struct BakeRun {
+    const Scene& scene;
+    const BakeConfig& config;
+    const BakeOptions& options;
+    const RayTracer& tracer;
+    std::chrono::steady_clock::time_point start;
+    uint32_t threads;
+    // Grows as batches are queued: a bricked volume's probes are known only as it refines.
+    std::atomic<uint64_t> totalProbes{0};
+    std::atomic<uint64_t> probesDone{0};
+    std::atomic<uint64_t> rays{0};
+    std::atomic<uint64_t> cutTotal{0};
+
+    double elapsedSeconds() const {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    }
+    void report() const {
+        if (options.progress) {
+            options.progress(BakeProgress{probesDone.load(), totalProbes.load(), elapsedSeconds()});
+        }
+    }
+};
+
+// What a method prepares once for the whole bake, before any volume.
+struct MethodState {
+    std::optional<VplConfig> vplConfig;
+    std::optional<VplGatherer> vplGatherer;
+    std::optional<LpvLights> lpvLights;
+};
+
+// Method vpl: one VPL set for the whole bake, from the seed alone; each probe then gathers it
+// on top of the direct light the path integrator computes with no bounce.
+void prepareVpl(BakeRun& run, const std::vector<VolumeDesc>& descs, MethodState& method,
+                BakeStats& stats) {
+    const BakeConfig& config = run.config;
+    const VplConfig& vpl = method.vplConfig.emplace(resolveVplConfig(run.scene, descs, config));
+    VplSet set = traceVpls(run.scene, run.tracer,
+                           VplPathSettings{*vpl.count, vpl.bounces, vpl.sampling}, config.seed);
+    run.rays.fetch_add(set.rays);
+    stats.vplLightPaths = set.lightPaths;
+    method.vplGatherer.emplace(
+        std::move(set.vpls), run.tracer,
+        VplGatherSettings{vpl.clamp, *vpl.clampDistance, *vpl.nearField, vpl.shadows, vpl.cutError},
+        config.seed);
+    stats.vpls = method.vplGatherer->vpls().size();
+}
+
+// Method lpv: the lights the grids carry, once for the whole bake; each volume then
+// propagates its own cascades and every probe adds them to its direct light.
+void prepareLpv(BakeRun& run, const std::vector<VolumeDesc>& descs, MethodState& method,
+                BakeStats& stats) {
+    const LpvLights& lights = method.lpvLights.emplace(prepareLpvLights(
+        run.scene, run.tracer, run.config.lpv, descs, run.config.seed, run.threads));
+    run.rays.fetch_add(lights.rays);
+    stats.vpls = lights.vpls;
+}
+
+MethodState prepareMethod(BakeRun& run, const std::vector<VolumeDesc>& descs, BakeStats& stats) {
+    const BakeConfig& config = run.config;
+    MethodState method;
+    if (config.method == Method::Vpl) {
+        prepareVpl(run, descs, method, stats);
+    }
+    if (config.method == Method::Lpv) {
+        prepareLpv(run, descs, method, stats);
+    }
+    return method;
+}
+
+// The path integrator's settings for every probe: the whole light for method path, the
+// direct light (and validity) for vpl, validity and optionally traced direct light for lpv.
+PathSettings pathSettings(const BakeConfig& config, const MethodState& method) {
+    PathSettings settings;
+    settings.samples = config.path.samples;
+    settings.maxBounces = config.path.maxBounces;
+    if (method.lpvLights) {
+        settings.samples =
+            config.lpv.direct == LpvDirect::Traced ? config.lpv.directSamples : kLpvValiditySamples;
+        settings.maxBounces = 0;
+    }
+    return settings;
+}
+
+// One volume's probe integrator: the path integrator, plus the method's VPL gather or
+// propagated LPV cascades.
+class VolumeIntegrator {
+public:
+    VolumeIntegrator(const BakeRun& run, const MethodState& method, const VolumeDesc& desc,
+                     uint32_t volume_index)
+        : m_config(run.config), m_volume(volume_index),
+          m_lpvCascades(method.lpvLights
+                            ? std::optional<LpvCascades>(propagateLpv(
+                                  run.scene, *method.lpvLights, m_config.lpv, desc, run.threads))
+                            : std::nullopt),
+          m_path(run.scene, run.tracer, pathSettings(m_config, method), desc.shOrder) {
+        if (method.vplGatherer) {
+            m_vpl.emplace(run.scene, run.tracer, *method.vplGatherer, *method.vplConfig,
+                          desc.shOrder);
+        }
+    }
+
+    // The probe at `p`, seeded by (seed, volume, id); adds the VPL cut's size to `cut`.
+    ProbeSample bakeProbe(glm::vec3 p, uint64_t id, uint64_t& cut) const {
+        ProbeSample s;
+        if (m_vpl) {
+            const VplProbeSample v = m_vpl->bakeProbe(p, m_config.seed, m_volume, id);
+            s = v.probe;
+            cut += v.cutSize;
+        } else {
+            s = m_path.bakeProbe(p, m_config.seed, m_volume, id);
+        }
+        if (m_lpvCascades) {
+            s.sh = lpvProbe(*m_lpvCascades, m_config.lpv, p, s.sh);
+        }
+        return s;
+    }
+
+private:
+    const BakeConfig& m_config;
+    uint32_t m_volume;
+    std::optional<LpvCascades> m_lpvCascades;
+    PathIntegrator m_path;
+    std::optional<VplProbeIntegrator> m_vpl;
+};
+
+// Bakes any set of positions on the parallel loop. Each probe's result depends only on
+// (seed, volume, id), so scheduling never changes the output.
+void bakeBatch(BakeRun& run, const VolumeIntegrator& integrator,
+               std::span<const glm::vec3> positions, std::span<const uint64_t> ids,
+               std::span<sh::ShRgb> out_sh, std::span<uint8_t> out_valid) {
+    const size_t count = positions.size();
+    run.totalProbes.fetch_add(count);
+    // Small chunks keep both threads busy to the end.
+    constexpr size_t kChunk = 4;
+    const auto body = [&](size_t begin, size_t end) {
+        uint64_t rays = 0;
+        uint64_t cut = 0;
+        for (size_t i = begin; i < end; ++i) {
+            const ProbeSample s = integrator.bakeProbe(positions[i], ids[i], cut);
+            out_sh[i] = s.sh;
+            out_valid[i] = probeValidity(s, run.config.backfaceThreshold);
+            rays += s.rays;
+        }
+        run.rays.fetch_add(rays);
+        run.cutTotal.fetch_add(cut);
+        run.probesDone.fetch_add(end - begin);
+    };
+    if (run.options.progress) {
+        // The calling thread only reports, so callbacks never run on a loop thread
+        // (BakeOptions::progress).
+        parallelForWatched(count, run.threads, kChunk, body, std::chrono::milliseconds(100),
+                           [&] { run.report(); });
+    } else {
+        parallelFor(count, run.threads, kChunk, body);
+    }
+}
+
+BrickedSettings brickedSettings(const BakeRun& run, const VolumeConfig& vc) {
+    BrickedSettings bs;
+    bs.maxLevel = vc.maxLevel;
+    bs.refineError = vc.refineError;
+    bs.budgetBytes = run.config.maxMemoryBytes;
+    bs.dilate = run.config.dilate;
+    bs.tracer = &run.tracer;
+    bs.nudge = run.config.nudge;
+    bs.backfaceThreshold = run.config.backfaceThreshold;
+    bs.visibility = run.config.visibility;
+    bs.threads = run.threads;
+    return bs;
+}
+
+// Adds a bricked volume's statistics and warnings to the bake's.
+void addBrickedOutcome(const BrickedOutcome& b, BakeResult& result) {
+    for (int l = 0; l < 4; ++l) {
+        result.stats.bricksPerLevel[l] += b.bricksPerLevel[l];
+    }
+    result.stats.refineCandidates += b.refineCandidates;
+    result.stats.budgetDropped += b.budgetDropped;
+    result.stats.budgetError = std::max(result.stats.budgetError, b.budgetError);
+    result.stats.predictedInterpolationError =
+        std::max(result.stats.predictedInterpolationError, b.predictedError);
+    result.stats.invalidProbes += b.invalidProbes;
+    result.stats.nudgedProbes += b.nudgedProbes;
+    result.warnings.insert(result.warnings.end(), b.warnings.begin(), b.warnings.end());
+}
+
+Result<Volume> bakeBrickedVolume(BakeRun& run, const VolumeDesc& desc, const VolumeConfig& vc,
+                                 const ProbeBatchFn& bake_batch, BakeResult& result) {
+    Result<BrickedOutcome> bricked =
+        bakeBricked(run.scene, desc, desc.shOrder, brickedSettings(run, vc), bake_batch);
+    if (!bricked) {
+        return bricked.error();
+    }
+    const BrickedOutcome& b = bricked.value();
+    addBrickedOutcome(b, result);
+    if (!b.visibility.empty()) {
+        run.rays.fetch_add(kVisibilityRaysPerProbe * b.desc.probeCount());
+    }
+    return makeVolume(b.desc, b.probes, b.validity, b.visibility);
+}
+
+Result<Volume> bakeDenseVolume(BakeRun& run, const VolumeDesc& desc, const ProbeBatchFn& bake_batch,
+                               BakeResult& result) {
+    const size_t count = desc.grid.probeCount();
+    std::vector<glm::vec3> positions(count);
+    std::vector<uint64_t> ids(count);
+    for (size_t i = 0; i < count; ++i) {
+        positions[i] = desc.grid.probeWorld(desc.grid.probeCoords(i));
+        ids[i] = i;
+    }
+    std::vector<sh::ShRgb> probes(count);
+    std::vector<uint8_t> validity(count, kProbeValid);
+    bake_batch(positions, ids, probes, validity);
+
+    const uint64_t invalid = uint64_t(std::count(validity.begin(), validity.end(), 0));
+    result.stats.invalidProbes += invalid;
+    if (run.config.dilate && invalid > 0) {
+        const uint64_t unreachable = dilate(desc.grid, probes, validity);
+        if (unreachable > 0) {
+            result.warnings.push_back("volume '" + desc.name + "': " + std::to_string(unreachable) +
+                                      " invalid probes have no valid probe to dilate from");
+        }
+    }
+    // Visibility from the validity before dilation: dilated probes stay hidden.
+    std::vector<uint8_t> vis;
+    if (run.config.visibility) {
+        vis = traceVolumeVisibility(run.tracer, desc, validity, run.threads);
+        run.rays.fetch_add(kVisibilityRaysPerProbe * count);
+    }
+    return makeVolume(desc, probes, validity, vis);
+}
+
+Result<Volume> bakeVolume(BakeRun& run, const MethodState& method, const VolumeDesc& desc,
+                          uint32_t volume_index, const VolumeConfig& vc, BakeResult& result) {
+    const VolumeIntegrator integrator(run, method, desc, volume_index);
+    const ProbeBatchFn bake_batch = [&](std::span<const glm::vec3> positions,
+                                        std::span<const uint64_t> ids, std::span<sh::ShRgb> out_sh,
+                                        std::span<uint8_t> out_valid) {
+        bakeBatch(run, integrator, positions, ids, out_sh, out_valid);
+    };
+    if (desc.layout == VolumeLayout::Bricked) {
+        return bakeBrickedVolume(run, desc, vc, bake_batch, result);
+    }
+    return bakeDenseVolume(run, desc, bake_batch, result);
+}
+
+void finishStats(const BakeRun& run, const MethodState& method, BakeStats& stats) {
+    stats.seconds = run.elapsedSeconds();
+    stats.probes = run.totalProbes.load();
+    stats.rays = run.rays.load();
+    stats.mraysPerSecond = stats.seconds > 0 ? double(stats.rays) / stats.seconds * 1e-6 : 0;
+    stats.peakMemoryBytes = peakResidentBytes();
+    if (method.vplGatherer && run.totalProbes.load() > 0) {
+        stats.vplMeanCut = double(run.cutTotal.load()) / double(run.totalProbes.load());
+    }
+}
+
+// The metadata records what was actually baked: the resolved resolution of every volume and
+// the method's resolved settings.
+BakeMetadata bakeMetadata(const BakeRun& run, const std::vector<VolumeDesc>& descs,
+                          const MethodState& method, double seconds) {
+    const BakeConfig& config = run.config;
+    BakeMetadata m;
+    m.toolVersion = "probekit " PROBEKIT_VERSION_STRING;
+    m.method = std::string(toString(config.method));
+    BakeConfig resolved = config;
+    resolved.volumes = volumeConfigs(config);
+    for (size_t i = 0; i < resolved.volumes.size(); ++i) {
+        resolved.volumes[i].resolution = descs[i].grid.resolution();
+    }
+    if (method.vplConfig) {
+        resolved.vpl = *method.vplConfig; // the chosen count and clamp distance
+    }
+    if (method.lpvLights) {
+        resolved.lpv.iterations = resolveLpvSettings(config.lpv).iterations;
+    }
+    m.parametersJson = describeConfig(resolved);
+    m.seed = config.seed;
+    m.sceneHash = run.scene.sourceHash;
+    m.bakeSeconds = seconds;
+    return m;
+}
+
+} // namespace
+
 Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const BakeOptions& options) {
     const auto start = std::chrono::steady_clock::now();
     if (Result<void> valid = validateBakeConfig(config); !valid) {
@@ -334,246 +631,22 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     if (!tracer) {
         return tracer.error();
     }
-
+    BakeRun run{scene, config, options, *tracer.value(), start, resolveThreads(options.threads)};
     BakeResult result;
-    result.stats.threads =
-        options.threads ? options.threads : std::max(1u, std::thread::hardware_concurrency());
-    // Grows as batches are queued: a bricked volume's probes are known only as it refines.
-    std::atomic<uint64_t> total_probes{0};
-    std::atomic<uint64_t> probes_done{0};
-    std::vector<VolumeConfig> volume_configs = config.volumes;
-    if (volume_configs.empty()) {
-        volume_configs.push_back(VolumeConfig{});
-    }
-    std::atomic<uint64_t> rays{0};
-    std::atomic<uint64_t> cut_total{0};
-
-    // Method vpl: one VPL set for the whole bake, from the seed alone; each probe then gathers
-    // it on top of the direct light the path integrator computes with no bounce.
-    std::optional<VplConfig> vpl_config;
-    std::optional<VplGatherer> vpl_gatherer;
-    if (config.method == Method::Vpl) {
-        vpl_config = resolveVplConfig(scene, descs.value(), config);
-        VplSet set = traceVpls(
-            scene, *tracer.value(),
-            VplPathSettings{*vpl_config->count, vpl_config->bounces, vpl_config->sampling},
-            config.seed);
-        rays.fetch_add(set.rays);
-        result.stats.vplLightPaths = set.lightPaths;
-        vpl_gatherer.emplace(std::move(set.vpls), *tracer.value(),
-                             VplGatherSettings{vpl_config->clamp, *vpl_config->clampDistance,
-                                               *vpl_config->nearField, vpl_config->shadows,
-                                               vpl_config->cutError},
-                             config.seed);
-        result.stats.vpls = vpl_gatherer->vpls().size();
-    }
-    // Method lpv: the lights the grids carry, once for the whole bake; each volume then
-    // propagates its own cascades and every probe adds them to its direct light.
-    std::optional<LpvLights> lpv_lights;
-    if (config.method == Method::Lpv) {
-        lpv_lights = prepareLpvLights(scene, *tracer.value(), config.lpv, descs.value(),
-                                      config.seed, result.stats.threads);
-        rays.fetch_add(lpv_lights->rays);
-        result.stats.vpls = lpv_lights->vpls;
-    }
-    auto report = [&] {
-        if (options.progress) {
-            options.progress(BakeProgress{
-                probes_done.load(), total_probes.load(),
-                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()});
-        }
-    };
-
+    result.stats.threads = run.threads;
+    const MethodState method = prepareMethod(run, descs.value(), result.stats);
+    const std::vector<VolumeConfig> volume_configs = volumeConfigs(config);
     for (uint32_t vi = 0; vi < descs.value().size(); ++vi) {
-        const VolumeDesc& desc = descs.value()[vi];
-        PathSettings settings;
-        settings.samples = config.path.samples;
-        settings.maxBounces = config.path.maxBounces;
-        std::optional<LpvCascades> lpv_cascades;
-        if (lpv_lights) {
-            settings.samples = config.lpv.direct == LpvDirect::Traced ? config.lpv.directSamples
-                                                                      : kLpvValiditySamples;
-            settings.maxBounces = 0;
-            lpv_cascades.emplace(
-                propagateLpv(scene, *lpv_lights, config.lpv, desc, result.stats.threads));
-        }
-        const PathIntegrator integrator(scene, *tracer.value(), settings, desc.shOrder);
-        std::optional<VplProbeIntegrator> vpl_integrator;
-        if (vpl_gatherer) {
-            vpl_integrator.emplace(scene, *tracer.value(), *vpl_gatherer, *vpl_config,
-                                   desc.shOrder);
-        }
-
-        // Bakes any set of positions on the pool. Each probe's result depends only on
-        // (seed, volume, id), so scheduling never changes the output.
-        ProbeBatchFn bake_batch = [&](std::span<const glm::vec3> positions,
-                                      std::span<const uint64_t> ids, std::span<sh::ShRgb> out_sh,
-                                      std::span<uint8_t> out_valid) {
-            const size_t count = positions.size();
-            total_probes.fetch_add(count);
-            std::atomic<size_t> next{0};
-            // Small chunks keep both threads busy to the end.
-            constexpr size_t kChunk = 4;
-            auto worker = [&] {
-                uint64_t local_rays = 0;
-                uint64_t local_cut = 0;
-                for (;;) {
-                    const size_t begin = next.fetch_add(kChunk);
-                    if (begin >= count) {
-                        break;
-                    }
-                    const size_t end = std::min(count, begin + kChunk);
-                    for (size_t i = begin; i < end; ++i) {
-                        const glm::vec3 p = positions[i];
-                        ProbeSample s;
-                        if (vpl_integrator) {
-                            const VplProbeSample v =
-                                vpl_integrator->bakeProbe(p, config.seed, vi, ids[i]);
-                            s = v.probe;
-                            local_cut += v.cutSize;
-                        } else {
-                            s = integrator.bakeProbe(p, config.seed, vi, ids[i]);
-                        }
-                        if (lpv_cascades) {
-                            s.sh = lpvProbe(*lpv_cascades, config.lpv, p, s.sh);
-                        }
-                        out_sh[i] = s.sh;
-                        out_valid[i] = probeValidity(s, config.backfaceThreshold);
-                        local_rays += s.rays;
-                    }
-                    probes_done.fetch_add(end - begin);
-                }
-                rays.fetch_add(local_rays);
-                cut_total.fetch_add(local_cut);
-            };
-            const uint64_t batch_end = probes_done.load() + count;
-            std::vector<std::thread> pool;
-            const uint32_t pool_size =
-                options.progress ? result.stats.threads : result.stats.threads - 1;
-            for (uint32_t t = 0; t < pool_size; ++t) {
-                pool.emplace_back(worker);
-            }
-            if (options.progress) {
-                // The calling thread only reports, so callbacks never run on a pool thread.
-                while (probes_done.load() < batch_end) {
-                    report();
-                    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-                }
-            } else {
-                worker();
-            }
-            for (std::thread& t : pool) {
-                t.join();
-            }
-        };
-
-        if (desc.layout == VolumeLayout::Bricked) {
-            const VolumeConfig& vc = volume_configs[vi];
-            BrickedSettings bs;
-            bs.maxLevel = vc.maxLevel;
-            bs.refineError = vc.refineError;
-            bs.budgetBytes = config.maxMemoryBytes;
-            bs.dilate = config.dilate;
-            bs.tracer = tracer.value().get();
-            bs.nudge = config.nudge;
-            bs.backfaceThreshold = config.backfaceThreshold;
-            bs.visibility = config.visibility;
-            bs.threads = result.stats.threads;
-            Result<BrickedOutcome> bricked = bakeBricked(scene, desc, desc.shOrder, bs, bake_batch);
-            if (!bricked) {
-                return bricked.error();
-            }
-            BrickedOutcome& b = bricked.value();
-            for (int l = 0; l < 4; ++l) {
-                result.stats.bricksPerLevel[l] += b.bricksPerLevel[l];
-            }
-            result.stats.refineCandidates += b.refineCandidates;
-            result.stats.budgetDropped += b.budgetDropped;
-            result.stats.budgetError = std::max(result.stats.budgetError, b.budgetError);
-            result.stats.predictedInterpolationError =
-                std::max(result.stats.predictedInterpolationError, b.predictedError);
-            result.stats.invalidProbes += b.invalidProbes;
-            result.stats.nudgedProbes += b.nudgedProbes;
-            result.warnings.insert(result.warnings.end(), b.warnings.begin(), b.warnings.end());
-            if (!b.visibility.empty()) {
-                rays.fetch_add(kVisibilityRaysPerProbe * b.desc.probeCount());
-            }
-            Result<Volume> volume = makeVolume(b.desc, b.probes, b.validity, b.visibility);
-            if (!volume) {
-                return volume.error();
-            }
-            result.file.volumes.push_back(std::move(volume).value());
-            continue;
-        }
-
-        const size_t count = desc.grid.probeCount();
-        std::vector<glm::vec3> positions(count);
-        std::vector<uint64_t> ids(count);
-        for (size_t i = 0; i < count; ++i) {
-            positions[i] = desc.grid.probeWorld(desc.grid.probeCoords(i));
-            ids[i] = i;
-        }
-        std::vector<sh::ShRgb> probes(count);
-        std::vector<uint8_t> validity(count, kProbeValid);
-        bake_batch(positions, ids, probes, validity);
-
-        const uint64_t invalid = uint64_t(std::count(validity.begin(), validity.end(), 0));
-        result.stats.invalidProbes += invalid;
-        if (config.dilate && invalid > 0) {
-            const uint64_t unreachable = dilate(desc.grid, probes, validity);
-            if (unreachable > 0) {
-                result.warnings.push_back("volume '" + desc.name +
-                                          "': " + std::to_string(unreachable) +
-                                          " invalid probes have no valid probe to dilate from");
-            }
-        }
-        // Visibility from the validity before dilation: dilated probes stay hidden.
-        std::vector<uint8_t> vis;
-        if (config.visibility) {
-            vis = traceVolumeVisibility(*tracer.value(), desc, validity, result.stats.threads);
-            rays.fetch_add(kVisibilityRaysPerProbe * count);
-        }
-        Result<Volume> volume = makeVolume(desc, probes, validity, vis);
+        Result<Volume> volume =
+            bakeVolume(run, method, descs.value()[vi], vi, volume_configs[vi], result);
         if (!volume) {
             return volume.error();
         }
         result.file.volumes.push_back(std::move(volume).value());
     }
-    report();
-
-    result.stats.seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    result.stats.probes = total_probes.load();
-    result.stats.rays = rays.load();
-    result.stats.mraysPerSecond =
-        result.stats.seconds > 0 ? double(result.stats.rays) / result.stats.seconds * 1e-6 : 0;
-    result.stats.peakMemoryBytes = peakResidentBytes();
-    if (vpl_gatherer && total_probes.load() > 0) {
-        result.stats.vplMeanCut = double(cut_total.load()) / double(total_probes.load());
-    }
-
-    BakeMetadata& m = result.file.metadata;
-    m.toolVersion = "probekit " PROBEKIT_VERSION_STRING;
-    m.method = std::string(toString(config.method));
-    BakeConfig resolved = config;
-    if (resolved.volumes.empty()) {
-        resolved.volumes.push_back(VolumeConfig{});
-    }
-    // Record what was actually baked: the resolved resolution and bounds of every volume.
-    for (size_t i = 0; i < resolved.volumes.size(); ++i) {
-        const VolumeDesc& d = descs.value()[i];
-        resolved.volumes[i].resolution = d.grid.resolution();
-    }
-    if (vpl_config) {
-        resolved.vpl = *vpl_config; // the chosen count and clamp distance
-    }
-    if (lpv_lights) {
-        resolved.lpv.iterations = resolveLpvSettings(config.lpv).iterations;
-    }
-    m.parametersJson = describeConfig(resolved);
-    m.seed = config.seed;
-    m.sceneHash = scene.sourceHash;
-    m.bakeSeconds = result.stats.seconds;
+    run.report();
+    finishStats(run, method, result.stats);
+    result.file.metadata = bakeMetadata(run, descs.value(), method, result.stats.seconds);
     return result;
 }
 

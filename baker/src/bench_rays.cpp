@@ -8,6 +8,7 @@
 #include <thread>
 #include <vector>
 
+#include "parallel.hpp"
 #include "ray_tracer.hpp"
 #include "rng.hpp"
 
@@ -50,10 +51,7 @@ Result<RayThroughput> measureRayThroughput(const Scene& scene, uint64_t rays, ui
     if (rays == 0) {
         return makeError(ErrorCode::InvalidArgument, "bench-rays: the ray count must be positive");
     }
-    if (threads == 0) {
-        threads = std::max(1u, std::thread::hardware_concurrency());
-    }
-    threads = uint32_t(std::min<uint64_t>(threads, rays));
+    threads = uint32_t(std::min<uint64_t>(resolveThreads(threads), rays));
     Result<std::unique_ptr<RayTracer>> built = RayTracer::create(scene);
     if (!built) {
         return built.error();
@@ -63,6 +61,13 @@ Result<RayThroughput> measureRayThroughput(const Scene& scene, uint64_t rays, ui
     // Phases, separated by barriers that the timing thread also joins: generate | closest hit |
     // occlusion. The clock runs between the barriers around a phase, so generation and thread
     // start-up stay outside it.
+    // This is not the baker's parallel loop (parallel.hpp) on purpose: that loop starts its
+    // threads inside the call and hands out ranges to whichever thread is free, which is right
+    // for a bake's results (ARCHITECTURE.md, "Output is deterministic") but wrong for a rate.
+    // Timed around it, thread start-up would count as tracing (a large share of a short run
+    // such as the 20000 rays of the bench-rays test), and nothing would make every thread trace
+    // its own pregenerated rays for the whole interval. The barrier starts the clock only once
+    // every thread holds its rays and stops it when the last one is done.
     std::barrier sync(std::ptrdiff_t(threads) + 1);
     std::vector<std::thread> workers;
     workers.reserve(threads);

@@ -526,83 +526,106 @@ uint64_t brickedGpuBytes(glm::uvec3 top_bricks, uint32_t max_level, uint64_t bri
            (visibility ? bricks * kBrickProbeCount * 8 : 0);
 }
 
-Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, sh::Order order,
-                                   const BrickedSettings& settings,
-                                   const ProbeBatchFn& bake_batch) {
-    const uint32_t max_level = settings.maxLevel;
-    const glm::uvec3 top = desc.grid.resolution();
-    Lattice lattice(desc, max_level, bake_batch, settings.nudge ? settings.tracer : nullptr,
-                    settings.backfaceThreshold);
-    const GeometryReach reach(scene, desc, max_level);
+namespace {
 
-    // Level 0: every brick, baked in one batch.
-    std::vector<Node> nodes;
-    for (const Brick& b : brick::uniformLayout(top, 0).bricks) {
-        nodes.push_back(Node{b});
+// The state a bricked bake carries from phase to phase (bakeBricked lists the phases).
+struct BrickedBake {
+    BrickedBake(const Scene& s, const VolumeDesc& d, sh::Order o, const BrickedSettings& bs,
+                const ProbeBatchFn& bake_batch)
+        : scene(s), desc(d), order(o), settings(bs), bake(bake_batch), maxLevel(bs.maxLevel),
+          top(d.grid.resolution()),
+          lattice(d, maxLevel, bake_batch, bs.nudge ? bs.tracer : nullptr, bs.backfaceThreshold),
+          reach(s, d, maxLevel) {}
+
+    const Scene& scene;
+    const VolumeDesc& desc;
+    sh::Order order;
+    const BrickedSettings& settings;
+    const ProbeBatchFn& bake;
+    uint32_t maxLevel;
+    glm::uvec3 top;
+    Lattice lattice;
+    GeometryReach reach;
+    std::vector<Node> nodes; // level 0 first, then each level's finer bricks as they are kept
+    float scale = 1.0f;      // the error scale (irradianceScale of the level-0 probes)
+    double noise2 = 0.0;     // one probe's relative noise variance (measureNoise)
+    BrickedOutcome out;
+};
+
+// Invalid probes take dilated values as soon as they are baked: the refinement test then
+// sees what the runtime will interpolate.
+void dilateBaked(BrickedBake& b) {
+    if (!b.settings.dilate) {
+        return;
+    }
+    std::vector<uint64_t> invalid;
+    for (const auto& [key, index] : b.lattice.indexMap()) {
+        if (b.lattice.allValid()[index] != kProbeValid) {
+            invalid.push_back(key);
+        }
+    }
+    std::sort(invalid.begin(), invalid.end());
+    dilateLattice(b.lattice, invalid, 1u << b.maxLevel);
+}
+
+// Level 0: every brick, baked in one batch, and the error scale from its probes. Returns the
+// level-0 lattice points (shared ones once per brick).
+std::vector<glm::uvec3> bakeLevelZero(BrickedBake& b) {
+    for (const Brick& brick : brick::uniformLayout(b.top, 0).bricks) {
+        b.nodes.push_back(Node{brick});
     }
     std::vector<glm::uvec3> wanted;
-    for (const Node& n : nodes) {
-        const auto pts = regionPoints(n.brick, max_level, 1);
+    for (const Node& n : b.nodes) {
+        const auto pts = regionPoints(n.brick, b.maxLevel, 1);
         wanted.insert(wanted.end(), pts.begin(), pts.end());
     }
-    // Invalid probes take dilated values as soon as they are baked: the refinement test then
-    // sees what the runtime will interpolate.
-    auto dilate_all = [&] {
-        if (!settings.dilate) {
-            return;
-        }
-        std::vector<uint64_t> invalid;
-        for (const auto& [key, index] : lattice.indexMap()) {
-            if (lattice.allValid()[index] != kProbeValid) {
-                invalid.push_back(key);
-            }
-        }
-        std::sort(invalid.begin(), invalid.end());
-        dilateLattice(lattice, invalid, 1u << max_level);
-    };
-    lattice.ensure(wanted);
-    dilate_all();
-    const float scale = irradianceScale(lattice, wanted, order);
+    b.lattice.ensure(wanted);
+    dilateBaked(b);
+    b.scale = irradianceScale(b.lattice, wanted, b.order);
+    return wanted;
+}
 
-    // Monte Carlo noise: a second, independent bake of up to kNoiseProbes valid level-0 probes
-    // (ids with the top bit set seed other sample sequences). Half the mean squared difference
-    // of the two estimates is one estimate's noise variance.
-    double noise2 = 0.0;
-    {
-        constexpr size_t kNoiseProbes = 64;
-        std::vector<glm::uvec3> valid_points; // baked where they are (not nudged)
-        for (const glm::uvec3& u : wanted) {
-            if (lattice.valid(u) && !lattice.nudged(lattice.key(u))) {
-                valid_points.push_back(u);
-            }
+// Monte Carlo noise: a second, independent bake of up to kNoiseProbes valid level-0 probes
+// (ids with the top bit set seed other sample sequences). Half the mean squared difference
+// of the two estimates is one estimate's noise variance.
+void measureNoise(BrickedBake& b, const std::vector<glm::uvec3>& level_zero) {
+    const Lattice& lattice = b.lattice;
+    constexpr size_t kNoiseProbes = 64;
+    std::vector<glm::uvec3> valid_points; // baked where they are (not nudged)
+    for (const glm::uvec3& u : level_zero) {
+        if (lattice.valid(u) && !lattice.nudged(lattice.key(u))) {
+            valid_points.push_back(u);
         }
-        std::sort(valid_points.begin(), valid_points.end(),
-                  [&](glm::uvec3 x, glm::uvec3 y) { return lattice.key(x) < lattice.key(y); });
-        valid_points.erase(std::unique(valid_points.begin(), valid_points.end()),
-                           valid_points.end());
-        const size_t stride = std::max<size_t>(1, valid_points.size() / kNoiseProbes);
-        std::vector<glm::vec3> positions;
-        std::vector<uint64_t> ids;
-        std::vector<glm::uvec3> picked;
-        for (size_t i = 0; i < valid_points.size() && picked.size() < kNoiseProbes; i += stride) {
-            picked.push_back(valid_points[i]);
-            positions.push_back(lattice.world(valid_points[i]));
-            ids.push_back(lattice.key(valid_points[i]) | (uint64_t(1) << 63));
-        }
-        std::vector<sh::ShRgb> again(picked.size());
-        std::vector<uint8_t> again_valid(picked.size());
-        bake_batch(positions, ids, again, again_valid);
-        double sum = 0.0;
-        for (size_t i = 0; i < picked.size(); ++i) {
-            sum += squaredDifference(again[i], lattice.sh(picked[i]), order);
-        }
-        noise2 = picked.empty() ? 0.0 : 0.5 * sum / double(picked.size()) / (double(scale) * scale);
     }
+    std::sort(valid_points.begin(), valid_points.end(),
+              [&](glm::uvec3 x, glm::uvec3 y) { return lattice.key(x) < lattice.key(y); });
+    valid_points.erase(std::unique(valid_points.begin(), valid_points.end()), valid_points.end());
+    const size_t stride = std::max<size_t>(1, valid_points.size() / kNoiseProbes);
+    std::vector<glm::vec3> positions;
+    std::vector<uint64_t> ids;
+    std::vector<glm::uvec3> picked;
+    for (size_t i = 0; i < valid_points.size() && picked.size() < kNoiseProbes; i += stride) {
+        picked.push_back(valid_points[i]);
+        positions.push_back(lattice.world(valid_points[i]));
+        ids.push_back(lattice.key(valid_points[i]) | (uint64_t(1) << 63));
+    }
+    std::vector<sh::ShRgb> again(picked.size());
+    std::vector<uint8_t> again_valid(picked.size());
+    b.bake(positions, ids, again, again_valid);
+    double sum = 0.0;
+    for (size_t i = 0; i < picked.size(); ++i) {
+        sum += squaredDifference(again[i], lattice.sh(picked[i]), b.order);
+    }
+    b.noise2 =
+        picked.empty() ? 0.0 : 0.5 * sum / double(picked.size()) / (double(b.scale) * b.scale);
+}
 
-    // Level-0 prediction: how far the brick's probes stray from its 8 corners' interpolation
-    // (noise taken out), scaled by (1/3)^2 for the brick's own 3x finer spacing.
-    for (Node& n : nodes) {
-        const auto pts = regionPoints(n.brick, max_level, 1);
+// Level-0 prediction: how far the brick's probes stray from its 8 corners' interpolation
+// (noise taken out), scaled by (1/3)^2 for the brick's own 3x finer spacing.
+void predictLevelZero(BrickedBake& b) {
+    const Lattice& lattice = b.lattice;
+    for (Node& n : b.nodes) {
+        const auto pts = regionPoints(n.brick, b.maxLevel, 1);
         std::vector<sh::ShRgb> corner_brick(kBrickProbeCount);
         for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
             // A brick whose probes are its corners' values spread over 0..3: interpolating it
@@ -618,147 +641,190 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
                 continue;
             }
             const glm::vec3 t = glm::vec3(l) / 3.0f; // position in the corner lattice
-            const double e2 =
-                squaredDifference(brick::interpolate(corner_brick, t), lattice.sh(pts[k]), order) /
-                (double(scale) * scale);
-            sum.add(e2, noise2 * (1.0 + squaredWeightSum(t)));
+            const double e2 = squaredDifference(brick::interpolate(corner_brick, t),
+                                                lattice.sh(pts[k]), b.order) /
+                              (double(b.scale) * b.scale);
+            sum.add(e2, b.noise2 * (1.0 + squaredWeightSum(t)));
         }
         // (1/3)^2 for the brick's 3x finer spacing in smooth light, 1/3 near surfaces.
-        n.predicted = sum.rms() / (reach.near(n.brick) ? 3.0f : 9.0f);
+        n.predicted = sum.rms() / (b.reach.near(n.brick) ? 3.0f : 9.0f);
     }
+}
 
-    BrickedOutcome out;
-    std::vector<int> frontier(nodes.size());
-    for (size_t i = 0; i < nodes.size(); ++i) {
+// The bricks of one level worth testing, with their direct-light disagreement.
+struct Candidates {
+    std::vector<int> nodes;
+    std::vector<Disagreement> direct;
+};
+
+// Picks the frontier's bricks whose prediction (or direct-light disagreement) exceeds
+// `threshold` and that have a probe outside geometry, and bakes their finer probes.
+Candidates chooseCandidates(BrickedBake& b, DirectField& direct, const std::vector<int>& frontier,
+                            float threshold) {
+    Candidates out;
+    std::vector<glm::uvec3> wanted;
+    for (int i : frontier) {
+        Node& n = b.nodes[size_t(i)];
+        const auto own = regionPoints(n.brick, b.maxLevel, 1);
+        if (std::none_of(own.begin(), own.end(),
+                         [&](const glm::uvec3& u) { return b.lattice.valid(u); })) {
+            continue; // inside geometry: never spent on
+        }
+        const Disagreement from_direct = direct.disagreement(n.brick, b.maxLevel, b.scale);
+        const float most_direct =
+            *std::max_element(std::begin(from_direct.octant), std::end(from_direct.octant));
+        if (std::max(n.predicted, most_direct) <= threshold) {
+            continue;
+        }
+        out.nodes.push_back(i);
+        out.direct.push_back(from_direct);
+        const auto finer = regionPoints(n.brick, b.maxLevel, 2);
+        wanted.insert(wanted.end(), finer.begin(), finer.end());
+    }
+    b.lattice.ensure(wanted);
+    dilateBaked(b);
+    return out;
+}
+
+// Measures each candidate's disagreement per octant and adds the finer brick of every octant
+// where it exceeds `threshold` (on level `level + 1`). Returns the added bricks.
+std::vector<int> keepFinerBricks(BrickedBake& b, const Candidates& candidates, uint32_t level,
+                                 float threshold) {
+    std::vector<Node>& nodes = b.nodes;
+    std::vector<int> next;
+    for (size_t c = 0; c < candidates.nodes.size(); ++c) {
+        const int i = candidates.nodes[c];
+        const Disagreement d =
+            measure(b.lattice, nodes[size_t(i)].brick, b.maxLevel, b.order, b.scale, b.noise2);
+        // The full bake's disagreement decides; the exact direct-light one is a floor
+        // under it (noise subtraction can only hide an edge the pre-pass sees exactly).
+        Node& n = nodes[size_t(i)];
+        n.tested = true;
+        for (int o = 0; o < 8; ++o) {
+            n.octant[o] = std::max(d.octant[o], candidates.direct[c].octant[o]);
+        }
+        // Error falls with the square of the spacing in smooth light, but near surfaces
+        // (contact shading, occlusion) only about linearly.
+        const float decay = b.reach.near(n.brick) ? 2.0f : 4.0f;
+        const Brick parent = n.brick;
+        for (uint32_t o = 0; o < 8; ++o) {
+            if (nodes[size_t(i)].octant[o] <= threshold) {
+                continue; // the parent's interpolation is good enough there
+            }
+            Node child;
+            child.brick.level = uint8_t(level + 1);
+            child.brick.coord = parent.coord * 2u + glm::uvec3(o & 1, (o >> 1) & 1, o >> 2);
+            child.parent = i;
+            child.gain = nodes[size_t(i)].octant[o];
+            child.predicted = child.gain / decay;
+            nodes[size_t(i)].children[o] = int(nodes.size());
+            next.push_back(int(nodes.size()));
+            nodes.push_back(child);
+        }
+    }
+    return next;
+}
+
+// Refinement, one level at a time from every level-0 brick (the rule is in bricked.hpp).
+void refine(BrickedBake& b) {
+    std::vector<int> frontier(b.nodes.size());
+    for (size_t i = 0; i < b.nodes.size(); ++i) {
         frontier[i] = int(i);
     }
     // The cheap pre-pass: direct light from punctual lights (one shadow ray per light, exact,
     // no noise) on the finer lattice; its disagreement finds shadow edges, also in open air.
-    DirectField direct(scene, settings.tracer, lattice, order);
-    for (uint32_t level = 0; level < max_level; ++level) {
+    DirectField direct(b.scene, b.settings.tracer, b.lattice, b.order);
+    for (uint32_t level = 0; level < b.maxLevel; ++level) {
         // Every stored brick costs the same bytes; a finer brick removes about its volume
         // (1/8 per level) times the squared disagreement in its octant from the volume's
         // squared error. It is kept where that exceeds a fixed price per brick, which means
         // where its octant's disagreement exceeds refine_error x sqrt(8)^level.
-        const float threshold = settings.refineError * std::pow(8.0f, 0.5f * float(level));
-        std::vector<int> candidates;
-        std::vector<Disagreement> direct_error;
-        wanted.clear();
-        for (int i : frontier) {
-            Node& n = nodes[size_t(i)];
-            const auto own = regionPoints(n.brick, max_level, 1);
-            if (std::none_of(own.begin(), own.end(),
-                             [&](const glm::uvec3& u) { return lattice.valid(u); })) {
-                continue; // inside geometry: never spent on
-            }
-            const Disagreement from_direct = direct.disagreement(n.brick, max_level, scale);
-            const float most_direct =
-                *std::max_element(std::begin(from_direct.octant), std::end(from_direct.octant));
-            if (std::max(n.predicted, most_direct) <= threshold) {
-                continue;
-            }
-            candidates.push_back(i);
-            direct_error.push_back(from_direct);
-            const auto finer = regionPoints(n.brick, max_level, 2);
-            wanted.insert(wanted.end(), finer.begin(), finer.end());
-        }
-        lattice.ensure(wanted);
-        dilate_all();
-        out.refineCandidates += candidates.size();
-        std::vector<int> next;
-        for (size_t c = 0; c < candidates.size(); ++c) {
-            const int i = candidates[c];
-            const Disagreement d =
-                measure(lattice, nodes[size_t(i)].brick, max_level, order, scale, noise2);
-            // The full bake's disagreement decides; the exact direct-light one is a floor
-            // under it (noise subtraction can only hide an edge the pre-pass sees exactly).
-            Node& n = nodes[size_t(i)];
-            n.tested = true;
-            for (int o = 0; o < 8; ++o) {
-                n.octant[o] = std::max(d.octant[o], direct_error[c].octant[o]);
-            }
-            // Error falls with the square of the spacing in smooth light, but near surfaces
-            // (contact shading, occlusion) only about linearly.
-            const float decay = reach.near(n.brick) ? 2.0f : 4.0f;
-            const Brick parent = n.brick;
-            for (uint32_t o = 0; o < 8; ++o) {
-                if (nodes[size_t(i)].octant[o] <= threshold) {
-                    continue; // the parent's interpolation is good enough there
-                }
-                Node child;
-                child.brick.level = uint8_t(level + 1);
-                child.brick.coord = parent.coord * 2u + glm::uvec3(o & 1, (o >> 1) & 1, o >> 2);
-                child.parent = i;
-                child.gain = nodes[size_t(i)].octant[o];
-                child.predicted = child.gain / decay;
-                nodes[size_t(i)].children[o] = int(nodes.size());
-                next.push_back(int(nodes.size()));
-                nodes.push_back(child);
-            }
-        }
-        frontier = std::move(next);
+        const float threshold = b.settings.refineError * std::pow(8.0f, 0.5f * float(level));
+        const Candidates candidates = chooseCandidates(b, direct, frontier, threshold);
+        b.out.refineCandidates += candidates.nodes.size();
+        frontier = keepFinerBricks(b, candidates, level, threshold);
     }
+}
 
-    // The budget: drop the finer bricks whose removal costs the least error (volume times
-    // squared gain) until it fits; a brick goes only after its own finer bricks. Stored bricks
-    // are counted per level, so the bytes (which depend on the deepest level in use) cost
-    // nothing to recompute after each removal.
-    uint64_t stored_at[brick::kMaxLevel + 1] = {};
-    for (const Node& n : nodes) {
-        ++stored_at[n.brick.level];
-    }
-    auto deepest = [&] {
+// Stored bricks counted per level, so the bytes (which depend on the deepest level in use)
+// cost nothing to recompute after each removal.
+struct StoredCounts {
+    uint64_t at[brick::kMaxLevel + 1] = {};
+
+    uint32_t deepest(uint32_t max_level) const {
         uint32_t d = max_level;
-        while (d > 0 && stored_at[d] == 0) {
+        while (d > 0 && at[d] == 0) {
             --d;
         }
         return d;
+    }
+};
+
+uint64_t storedBytes(const BrickedBake& b, const StoredCounts& counts) {
+    const uint64_t stored = counts.at[0] + counts.at[1] + counts.at[2] + counts.at[3];
+    return brickedGpuBytes(b.top, counts.deepest(b.maxLevel), stored, b.order, b.desc.storage,
+                           b.settings.visibility);
+}
+
+// Drops the finer bricks whose removal costs the least error (volume times squared gain)
+// until the bytes fit or none is left to drop; a brick goes only after its own finer bricks.
+void dropCheapest(BrickedBake& b, StoredCounts& counts) {
+    std::vector<Node>& nodes = b.nodes;
+    using Entry = std::pair<double, int>;
+    std::priority_queue<Entry, std::vector<Entry>, std::greater<>> heap;
+    auto removable = [&](int i) {
+        const Node& n = nodes[size_t(i)];
+        return n.brick.level > 0 && !n.removed &&
+               std::all_of(std::begin(n.children), std::end(n.children),
+                           [&](int c) { return c < 0 || nodes[size_t(c)].removed; });
     };
-    auto bytes = [&] {
-        const uint64_t stored = stored_at[0] + stored_at[1] + stored_at[2] + stored_at[3];
-        return brickedGpuBytes(top, deepest(), stored, order, desc.storage, settings.visibility);
+    auto cost = [&](int i) {
+        const Node& n = nodes[size_t(i)];
+        return std::ldexp(double(n.gain) * n.gain, -3 * int(n.brick.level));
     };
-    if (bytes() > settings.budgetBytes) {
-        using Entry = std::pair<double, int>;
-        std::priority_queue<Entry, std::vector<Entry>, std::greater<>> heap;
-        auto removable = [&](int i) {
-            const Node& n = nodes[size_t(i)];
-            return n.brick.level > 0 && !n.removed &&
-                   std::all_of(std::begin(n.children), std::end(n.children),
-                               [&](int c) { return c < 0 || nodes[size_t(c)].removed; });
-        };
-        auto cost = [&](int i) {
-            const Node& n = nodes[size_t(i)];
-            return std::ldexp(double(n.gain) * n.gain, -3 * int(n.brick.level));
-        };
-        for (size_t i = 0; i < nodes.size(); ++i) {
-            if (removable(int(i))) {
-                heap.emplace(cost(int(i)), int(i));
-            }
+    for (size_t i = 0; i < nodes.size(); ++i) {
+        if (removable(int(i))) {
+            heap.emplace(cost(int(i)), int(i));
         }
-        while (bytes() > settings.budgetBytes && !heap.empty()) {
-            const int i = heap.top().second;
-            heap.pop();
-            Node& n = nodes[size_t(i)];
-            n.removed = true;
-            --stored_at[n.brick.level];
-            ++out.budgetDropped;
-            out.budgetError = std::max(out.budgetError, double(n.gain));
-            if (removable(n.parent)) {
-                heap.emplace(cost(n.parent), n.parent);
-            }
+    }
+    while (storedBytes(b, counts) > b.settings.budgetBytes && !heap.empty()) {
+        const int i = heap.top().second;
+        heap.pop();
+        Node& n = nodes[size_t(i)];
+        n.removed = true;
+        --counts.at[n.brick.level];
+        ++b.out.budgetDropped;
+        b.out.budgetError = std::max(b.out.budgetError, double(n.gain));
+        if (removable(n.parent)) {
+            heap.emplace(cost(n.parent), n.parent);
         }
-        if (bytes() > settings.budgetBytes) {
+    }
+}
+
+// The budget: drops finer bricks until the GPU bytes fit. Returns the deepest level still in
+// use, or an error when level 0 alone does not fit.
+Result<uint32_t> applyBudget(BrickedBake& b) {
+    StoredCounts counts;
+    for (const Node& n : b.nodes) {
+        ++counts.at[n.brick.level];
+    }
+    if (storedBytes(b, counts) > b.settings.budgetBytes) {
+        dropCheapest(b, counts);
+        const uint64_t bytes = storedBytes(b, counts);
+        if (bytes > b.settings.budgetBytes) {
             return makeError(ErrorCode::OutOfRange,
-                             "volume '" + desc.name + "': level 0 alone needs " +
-                                 std::to_string((bytes() + (1 << 20) - 1) >> 20) +
+                             "volume '" + b.desc.name + "': level 0 alone needs " +
+                                 std::to_string((bytes + (1 << 20) - 1) >> 20) +
                                  " MiB, more than max_memory_mb = " +
-                                 std::to_string(settings.budgetBytes >> 20) +
+                                 std::to_string(b.settings.budgetBytes >> 20) +
                                  " (fewer level-0 bricks: lower the density or resolution)");
         }
     }
+    return counts.deepest(b.maxLevel);
+}
 
-    // The stored bricks, coarse first, then z, y, x.
+// The stored bricks, coarse first, then z, y, x.
+std::vector<int> storedBricks(const std::vector<Node>& nodes) {
     std::vector<int> stored;
     for (size_t i = 0; i < nodes.size(); ++i) {
         if (!nodes[i].removed) {
@@ -771,18 +837,22 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
         return std::tuple(x.level, x.coord.z, x.coord.y, x.coord.x) <
                std::tuple(y.level, y.coord.z, y.coord.y, y.coord.x);
     });
+    return stored;
+}
 
-    // Predicted interpolation error, over the part of each stored brick that shows: where it
-    // was tested, each octant without a finer brick at its measured disagreement; otherwise the
-    // whole brick at its prediction. Weights are volumes times the brick's share of valid
-    // probes (error is only ever measured in open space).
+// Predicted interpolation error, over the part of each stored brick that shows: where it
+// was tested, each octant without a finer brick at its measured disagreement; otherwise the
+// whole brick at its prediction. Weights are volumes times the brick's share of valid
+// probes (error is only ever measured in open space).
+double predictedError(const BrickedBake& b, const std::vector<int>& stored) {
+    const std::vector<Node>& nodes = b.nodes;
     double sum_w = 0.0, sum_e2 = 0.0;
     for (int i : stored) {
         const Node& n = nodes[size_t(i)];
-        const auto own = regionPoints(n.brick, max_level, 1);
+        const auto own = regionPoints(n.brick, b.maxLevel, 1);
         const double valid_share =
             double(std::count_if(own.begin(), own.end(),
-                                 [&](const glm::uvec3& u) { return lattice.valid(u); })) /
+                                 [&](const glm::uvec3& u) { return b.lattice.valid(u); })) /
             double(kBrickProbeCount);
         const double w = std::ldexp(valid_share, -3 * int(n.brick.level));
         if (!n.tested) {
@@ -797,53 +867,98 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
             }
         }
     }
-    out.predictedError = sum_w > 0.0 ? std::sqrt(sum_e2 / sum_w) : 0.0;
+    return sum_w > 0.0 ? std::sqrt(sum_e2 / sum_w) : 0.0;
+}
 
-    // Re-express every stored brick on the lattice of the deepest level actually used.
-    const uint32_t used_level = deepest();
-    out.desc = desc;
-    out.desc.layout = VolumeLayout::Bricked;
-    out.desc.bricks.maxLevel = used_level;
+// Re-expresses every stored brick on the lattice of the deepest level actually used. Returns
+// the lattice keys of the bricks' probes, brick by brick.
+std::vector<uint64_t> layOutBricks(BrickedBake& b, const std::vector<int>& stored,
+                                   uint32_t used_level) {
+    b.out.desc = b.desc;
+    b.out.desc.layout = VolumeLayout::Bricked;
+    b.out.desc.bricks.maxLevel = used_level;
     std::vector<uint64_t> used_keys;
     for (int i : stored) {
-        const Brick& b = nodes[size_t(i)].brick;
-        out.desc.bricks.bricks.push_back(b);
-        ++out.bricksPerLevel[b.level];
-        for (const glm::uvec3& u : regionPoints(b, max_level, 1)) {
-            used_keys.push_back(lattice.key(u));
+        const Brick& brick = b.nodes[size_t(i)].brick;
+        b.out.desc.bricks.bricks.push_back(brick);
+        ++b.out.bricksPerLevel[brick.level];
+        for (const glm::uvec3& u : regionPoints(brick, b.maxLevel, 1)) {
+            used_keys.push_back(b.lattice.key(u));
         }
     }
-    std::vector<uint8_t> original_valid = lattice.allValid();
-    if (settings.dilate) {
-        std::vector<uint64_t> unique = used_keys;
-        std::sort(unique.begin(), unique.end());
-        unique.erase(std::unique(unique.begin(), unique.end()), unique.end());
-        const uint64_t unreachable = dilateLattice(lattice, unique, 1u << max_level);
-        if (unreachable > 0) {
-            out.warnings.push_back("volume '" + desc.name + "': " + std::to_string(unreachable) +
-                                   " invalid probes have no valid probe to dilate from");
-        }
+    return used_keys;
+}
+
+// Fills the used probes still invalid from the nearest valid ones on the lattice.
+void dilateUsed(BrickedBake& b, const std::vector<uint64_t>& used_keys) {
+    std::vector<uint64_t> unique = used_keys;
+    std::sort(unique.begin(), unique.end());
+    unique.erase(std::unique(unique.begin(), unique.end()), unique.end());
+    const uint64_t unreachable = dilateLattice(b.lattice, unique, 1u << b.maxLevel);
+    if (unreachable > 0) {
+        b.out.warnings.push_back("volume '" + b.desc.name + "': " + std::to_string(unreachable) +
+                                 " invalid probes have no valid probe to dilate from");
     }
-    out.probes.reserve(used_keys.size());
-    out.validity.reserve(used_keys.size());
+}
+
+// Copies the used probes out: values after dilation, validity from before it.
+void copyProbes(BrickedBake& b, const std::vector<uint64_t>& used_keys,
+                const std::vector<uint8_t>& original_valid) {
+    b.out.probes.reserve(used_keys.size());
+    b.out.validity.reserve(used_keys.size());
     for (uint64_t k : used_keys) {
-        const uint32_t index = lattice.indexMap().at(k);
-        out.probes.push_back(lattice.allSh()[index]);
-        out.validity.push_back(original_valid[index]);
-        out.invalidProbes += original_valid[index] == kProbeInvalid;
-        out.nudgedProbes += lattice.nudged(k);
+        const uint32_t index = b.lattice.indexMap().at(k);
+        b.out.probes.push_back(b.lattice.allSh()[index]);
+        b.out.validity.push_back(original_valid[index]);
+        b.out.invalidProbes += original_valid[index] == kProbeInvalid;
+        b.out.nudgedProbes += b.lattice.nudged(k);
     }
+}
+
+// Traces the visibility (when asked for) and stitches the bricks' borders through the
+// indirection.
+Result<void> stitch(BrickedBake& b) {
     Result<std::vector<uint32_t>> indirection =
-        brick::buildIndirection(top, out.desc.bricks, "volume '" + desc.name + "'");
+        brick::buildIndirection(b.top, b.out.desc.bricks, "volume '" + b.desc.name + "'");
     if (!indirection) {
         return indirection.error();
     }
-    if (settings.visibility && settings.tracer != nullptr) {
-        out.visibility =
-            traceVolumeVisibility(*settings.tracer, out.desc, out.validity, settings.threads);
+    if (b.settings.visibility && b.settings.tracer != nullptr) {
+        b.out.visibility = traceVolumeVisibility(*b.settings.tracer, b.out.desc, b.out.validity,
+                                                 b.settings.threads);
     }
-    brick::stitchBorders(top, out.desc.bricks, indirection.value(), out.probes, out.visibility);
-    return out;
+    brick::stitchBorders(b.top, b.out.desc.bricks, indirection.value(), b.out.probes,
+                         b.out.visibility);
+    return {};
+}
+
+} // namespace
+
+Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, sh::Order order,
+                                   const BrickedSettings& settings,
+                                   const ProbeBatchFn& bake_batch) {
+    BrickedBake b(scene, desc, order, settings, bake_batch);
+    const std::vector<glm::uvec3> level_zero = bakeLevelZero(b);
+    measureNoise(b, level_zero);
+    predictLevelZero(b);
+    refine(b);
+    const Result<uint32_t> used_level = applyBudget(b);
+    if (!used_level) {
+        return used_level.error();
+    }
+    const std::vector<int> stored = storedBricks(b.nodes);
+    b.out.predictedError = predictedError(b, stored);
+    const std::vector<uint64_t> used_keys = layOutBricks(b, stored, used_level.value());
+    const std::vector<uint8_t> original_valid = b.lattice.allValid();
+    if (settings.dilate) {
+        dilateUsed(b, used_keys);
+    }
+    copyProbes(b, used_keys, original_valid);
+    const Result<void> stitched = stitch(b);
+    if (!stitched) {
+        return stitched.error();
+    }
+    return std::move(b.out);
 }
 
 } // namespace probekit::baker

@@ -397,7 +397,103 @@ VplGatherResult VplGatherer::gatherAll(glm::vec3 position, sh::Order order) cons
     return result;
 }
 
-VplGatherResult VplGatherer::gatherCut(glm::vec3 position, sh::Order order, double baseline) const {
+// One probe's lightcut while it is settled (the file comment of vpl_gather.hpp has the rule):
+// the clusters taken so far, live or opened again, and the total T they give.
+class VplGatherer::Cut {
+public:
+    Cut(const VplGatherer& gatherer, glm::vec3 position, double baseline)
+        : m_g(gatherer), m_position(position), m_baseline(baseline), m_total(baseline) {}
+
+    // A first T that cannot be too small: the baseline plus the upper bounds of the clusters
+    // kSeedDepth levels down. Too large a T only costs another round below; too small a one
+    // would open clusters for nothing.
+    double seedTotal() const {
+        double first_total = m_baseline;
+        std::vector<std::pair<uint32_t, int>> seeds{{0u, 0}};
+        while (!seeds.empty()) {
+            const auto [index, depth] = seeds.back();
+            seeds.pop_back();
+            const Node& node = m_g.m_nodes[index];
+            if (node.secondChild == 0) {
+                const Vpl& v = m_g.m_vpls[node.representative];
+                if (const std::optional<Contribution> c =
+                        m_g.contribution(v, m_position, v.intensity)) {
+                    first_total += luminanceOf(c->irradiance);
+                }
+            } else if (depth < kSeedDepth) {
+                seeds.emplace_back(node.secondChild, depth + 1);
+                seeds.emplace_back(index + 1, depth + 1);
+            } else {
+                first_total += m_g.bounds(node, m_position).upper;
+            }
+        }
+        return first_total;
+    }
+
+    // Depth-first from `start`: every cluster with U_C <= threshold (or single VPL) facing the
+    // probe joins the cut, larger ones are opened. `known` is the visibility of start's
+    // representative when already traced: the cluster keeping that representative inherits it.
+    void descend(uint32_t start, float threshold, std::optional<bool> known) {
+        const uint32_t start_representative = m_g.m_nodes[start].representative;
+        m_stack.push_back(start);
+        while (!m_stack.empty()) {
+            const uint32_t index = m_stack.back();
+            m_stack.pop_back();
+            if (const std::optional<Cluster> c = visit(index, threshold)) {
+                const bool inherits = m_g.m_nodes[index].representative == start_representative;
+                join(*c, inherits ? known : std::nullopt);
+            }
+        }
+    }
+
+    // Re-opens every cluster whose bound exceeds cutError x T for the T now known (never less
+    // than kUnoccludedFloor x the unoccluded T once visibility is traced), at most
+    // kRefinementRounds times or until none does, tracing the new clusters' visibility after
+    // each round when `trace`.
+    void reopenRounds(bool trace) {
+        for (int round = 0; round < kRefinementRounds && reopen(); ++round) {
+            if (trace) {
+                traceVisibility();
+            }
+        }
+    }
+
+    // With shadows: corrects T by the traced visibility and resumes the opening against it.
+    void settleVisibility() {
+        m_unoccluded = m_total;
+        traceVisibility();
+        // No representative visible: the probe is enclosed (inside geometry); opening clusters
+        // would look for light that is not there.
+        if (m_total > m_baseline) {
+            reopenRounds(true);
+        }
+        traceVisibility(); // clusters opened in a last round
+    }
+
+    // The live clusters' visible light, projected, with the cut's size and error bound.
+    VplGatherResult result(sh::Order order) const {
+        VplGatherResult result;
+        result.rays = m_rays;
+        std::array<glm::dvec3, sh::kMaxCoefficients> acc{};
+        double bound_sum = 0.0;
+        for (const Cluster& c : m_cut) {
+            if (!c.live) {
+                continue;
+            }
+            ++result.cutSize;
+            bound_sum += c.bound;
+            if (c.hasContribution && c.visible) {
+                m_g.project(c.contribution, order, acc);
+            }
+        }
+        for (int i = 0; i < sh::kMaxCoefficients; ++i) {
+            result.sh.rgb[i] = glm::vec3(acc[i]);
+        }
+        result.errorBound = float(bound_sum);
+        return result;
+    }
+
+private:
     struct Cluster {
         uint32_t node;
         float bound;    // U_C; 0 for single VPLs (exact)
@@ -408,168 +504,129 @@ VplGatherResult VplGatherer::gatherCut(glm::vec3 position, sh::Order order, doub
         bool traced;
         bool visible;
     };
-    std::vector<Cluster> cut;
-    std::vector<uint32_t> stack;
-    uint32_t live = 0;
-    double total = baseline; // T: baseline + live estimates, with visibility where traced
 
-    // Depth-first from `start`: every cluster with U_C <= threshold (or single VPL) facing the
-    // probe joins the cut, larger ones are opened. `known` is the visibility of start's
-    // representative when already traced: the cluster keeping that representative inherits it.
-    const auto descend = [&](uint32_t start, float threshold, std::optional<bool> known) {
-        const uint32_t start_representative = m_nodes[start].representative;
-        stack.push_back(start);
-        while (!stack.empty()) {
-            const uint32_t index = stack.back();
-            stack.pop_back();
-            const Node& node = m_nodes[index];
-            Cluster c{};
-            c.node = index;
-            std::optional<Contribution> contribution;
-            if (node.secondChild == 0) {
-                const Vpl& v = m_vpls[node.representative];
-                contribution = this->contribution(v, position, v.intensity);
-                if (!contribution) {
-                    continue; // faces away
-                }
-            } else {
-                const Bounds b = bounds(node, position);
-                if (!(b.upper > 0.0f)) {
-                    continue; // no member faces the probe
-                }
-                if (b.upper > threshold && live + stack.size() + 2 <= kMaxCutSize) {
-                    stack.push_back(node.secondChild);
-                    stack.push_back(index + 1);
-                    continue;
-                }
-                c.bound = b.upper;
-                contribution = estimate(node, position, b.allFacing);
-            }
-            c.hasContribution = contribution.has_value();
-            if (contribution) {
-                c.contribution = *contribution;
-                c.estimate = luminanceOf(contribution->irradiance);
-            }
-            c.live = true;
-            c.visible = true;
-            // Nothing to trace without shadows or without a contribution.
-            c.traced = !m_settings.shadows || !contribution;
-            if (known && !c.traced && node.representative == start_representative) {
-                c.traced = true;
-                c.visible = *known;
-            }
-            total += c.visible ? c.estimate : 0.0f;
-            ++live;
-            cut.push_back(c);
-        }
-    };
-
-    VplGatherResult result;
-    std::vector<RayTracer::OcclusionRay> rays;
-    std::vector<uint32_t> traced_clusters;
-    std::vector<uint8_t> occluded;
-    const auto traceVisibility = [&] {
-        rays.clear();
-        traced_clusters.clear();
-        for (uint32_t i = 0; i < cut.size(); ++i) {
-            const Cluster& c = cut[i];
-            if (c.live && !c.traced) {
-                const Vpl& rep = m_vpls[m_nodes[c.node].representative];
-                rays.push_back({position, rep.shadowTarget - position, 1.0f});
-                traced_clusters.push_back(i);
-            }
-        }
-        occluded.assign(rays.size(), 0);
-        m_tracer.occluded(rays, occluded, true);
-        result.rays += rays.size();
-        for (size_t k = 0; k < traced_clusters.size(); ++k) {
-            Cluster& c = cut[traced_clusters[k]];
-            c.traced = true;
-            if (occluded[k]) {
-                c.visible = false;
-                total -= c.estimate;
-            }
-        }
-    };
-
-    // A first T that cannot be too small: the baseline plus the upper bounds of the clusters
-    // kSeedDepth levels down. Too large a T only costs another round below; too small a one
-    // would open clusters for nothing.
-    double first_total = baseline;
-    std::vector<std::pair<uint32_t, int>> seeds{{0u, 0}};
-    while (!seeds.empty()) {
-        const auto [index, depth] = seeds.back();
-        seeds.pop_back();
-        const Node& node = m_nodes[index];
+    // The cluster node `index` gives the cut at `threshold`; none when it faces away or is
+    // opened (its children then wait on the stack).
+    std::optional<Cluster> visit(uint32_t index, float threshold) {
+        const Node& node = m_g.m_nodes[index];
+        Cluster c{};
+        c.node = index;
+        std::optional<Contribution> contribution;
         if (node.secondChild == 0) {
-            const Vpl& v = m_vpls[node.representative];
-            if (const std::optional<Contribution> c = contribution(v, position, v.intensity)) {
-                first_total += luminanceOf(c->irradiance);
+            const Vpl& v = m_g.m_vpls[node.representative];
+            contribution = m_g.contribution(v, m_position, v.intensity);
+            if (!contribution) {
+                return std::nullopt; // faces away
             }
-        } else if (depth < kSeedDepth) {
-            seeds.emplace_back(node.secondChild, depth + 1);
-            seeds.emplace_back(index + 1, depth + 1);
         } else {
-            first_total += bounds(node, position).upper;
+            const Bounds b = m_g.bounds(node, m_position);
+            if (!(b.upper > 0.0f)) {
+                return std::nullopt; // no member faces the probe
+            }
+            if (b.upper > threshold && m_live + m_stack.size() + 2 <= kMaxCutSize) {
+                m_stack.push_back(node.secondChild);
+                m_stack.push_back(index + 1);
+                return std::nullopt;
+            }
+            c.bound = b.upper;
+            contribution = m_g.estimate(node, m_position, b.allFacing);
         }
+        c.hasContribution = contribution.has_value();
+        if (contribution) {
+            c.contribution = *contribution;
+            c.estimate = luminanceOf(contribution->irradiance);
+        }
+        return c;
     }
-    descend(0, float(double(m_settings.cutError) * first_total), std::nullopt);
 
-    // Re-open every cluster whose bound exceeds cutError x T for the T now known, until none
-    // does: first without visibility (no rays for clusters about to be opened), then with it.
-    std::vector<uint32_t> violating;
-    double unoccluded = 0.0; // T before visibility: the floor's reference
-    const auto reopen = [&] {
-        const auto threshold =
-            float(double(m_settings.cutError) * std::max(total, kUnoccludedFloor * unoccluded));
-        violating.clear();
-        for (uint32_t i = 0; i < cut.size(); ++i) {
-            if (cut[i].live && cut[i].bound > threshold && live < kMaxCutSize) {
-                violating.push_back(i);
+    // Adds a cluster to the cut as live, with `known` as its visibility when it inherits one.
+    void join(Cluster c, std::optional<bool> known) {
+        c.live = true;
+        c.visible = true;
+        // Nothing to trace without shadows or without a contribution.
+        c.traced = !m_g.m_settings.shadows || !c.hasContribution;
+        if (known && !c.traced) {
+            c.traced = true;
+            c.visible = *known;
+        }
+        m_total += c.visible ? c.estimate : 0.0f;
+        ++m_live;
+        m_cut.push_back(c);
+    }
+
+    // One round of re-opening; false when no cluster exceeded the bound.
+    bool reopen() {
+        const auto threshold = float(double(m_g.m_settings.cutError) *
+                                     std::max(m_total, kUnoccludedFloor * m_unoccluded));
+        m_violating.clear();
+        for (uint32_t i = 0; i < m_cut.size(); ++i) {
+            if (m_cut[i].live && m_cut[i].bound > threshold && m_live < kMaxCutSize) {
+                m_violating.push_back(i);
             }
         }
-        for (const uint32_t i : violating) {
-            Cluster& c = cut[i];
+        for (const uint32_t i : m_violating) {
+            Cluster& c = m_cut[i];
             c.live = false;
-            --live;
-            total -= c.visible ? c.estimate : 0.0f;
+            --m_live;
+            m_total -= c.visible ? c.estimate : 0.0f;
             const std::optional<bool> known =
                 c.traced && c.hasContribution ? std::optional<bool>(c.visible) : std::nullopt;
             descend(c.node, threshold, known);
         }
-        return !violating.empty();
-    };
-    for (int round = 0; round < kRefinementRounds && reopen(); ++round) {
-    }
-    if (m_settings.shadows) {
-        unoccluded = total;
-        traceVisibility();
-        // No representative visible: the probe is enclosed (inside geometry); opening clusters
-        // would look for light that is not there.
-        const bool any_visible = total > baseline;
-        for (int round = 0; any_visible && round < kRefinementRounds && reopen(); ++round) {
-            traceVisibility();
-        }
-        traceVisibility(); // clusters opened in a last round
+        return !m_violating.empty();
     }
 
-    std::array<glm::dvec3, sh::kMaxCoefficients> acc{};
-    double bound_sum = 0.0;
-    for (const Cluster& c : cut) {
-        if (!c.live) {
-            continue;
+    // One batch of rays to the representatives of the live clusters not traced yet; T loses
+    // the occluded ones' estimates.
+    void traceVisibility() {
+        m_rayBatch.clear();
+        m_tracedClusters.clear();
+        for (uint32_t i = 0; i < m_cut.size(); ++i) {
+            const Cluster& c = m_cut[i];
+            if (c.live && !c.traced) {
+                const Vpl& rep = m_g.m_vpls[m_g.m_nodes[c.node].representative];
+                m_rayBatch.push_back({m_position, rep.shadowTarget - m_position, 1.0f});
+                m_tracedClusters.push_back(i);
+            }
         }
-        ++result.cutSize;
-        bound_sum += c.bound;
-        if (c.hasContribution && c.visible) {
-            project(c.contribution, order, acc);
+        m_occluded.assign(m_rayBatch.size(), 0);
+        m_g.m_tracer.occluded(m_rayBatch, m_occluded, true);
+        m_rays += m_rayBatch.size();
+        for (size_t k = 0; k < m_tracedClusters.size(); ++k) {
+            Cluster& c = m_cut[m_tracedClusters[k]];
+            c.traced = true;
+            if (m_occluded[k]) {
+                c.visible = false;
+                m_total -= c.estimate;
+            }
         }
     }
-    for (int i = 0; i < sh::kMaxCoefficients; ++i) {
-        result.sh.rgb[i] = glm::vec3(acc[i]);
+
+    const VplGatherer& m_g;
+    glm::vec3 m_position;
+    double m_baseline;
+    std::vector<Cluster> m_cut;
+    std::vector<uint32_t> m_stack;
+    uint32_t m_live = 0;
+    double m_total;            // T: baseline + live estimates, with visibility where traced
+    double m_unoccluded = 0.0; // T before visibility: the floor's reference
+    uint64_t m_rays = 0;       // visibility rays traced
+    // Scratch reused between rounds.
+    std::vector<uint32_t> m_violating;
+    std::vector<RayTracer::OcclusionRay> m_rayBatch;
+    std::vector<uint32_t> m_tracedClusters;
+    std::vector<uint8_t> m_occluded;
+};
+
+VplGatherResult VplGatherer::gatherCut(glm::vec3 position, sh::Order order, double baseline) const {
+    Cut cut(*this, position, baseline);
+    cut.descend(0, float(double(m_settings.cutError) * cut.seedTotal()), std::nullopt);
+    // First without visibility: no rays for clusters about to be opened.
+    cut.reopenRounds(false);
+    if (m_settings.shadows) {
+        cut.settleVisibility();
     }
-    result.errorBound = float(bound_sum);
-    return result;
+    return cut.result(order);
 }
 
 } // namespace probekit::baker

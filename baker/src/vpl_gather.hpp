@@ -192,6 +192,7 @@ private:
                  std::array<glm::dvec3, sh::kMaxCoefficients>& acc) const;
     VplGatherResult gatherAll(glm::vec3 position, sh::Order order) const;
     VplGatherResult gatherCut(glm::vec3 position, sh::Order order, double baseline) const;
+    class Cut; // one probe's lightcut while gatherCut settles it
 
     std::vector<Vpl> m_vpls;
     std::vector<Node> m_nodes;
