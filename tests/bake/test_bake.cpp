@@ -21,7 +21,8 @@ namespace {
 
 const std::filesystem::path kShared = PROBEKIT_SHARED_DIR;
 
-// The bound for the path method on the Cornell box: band-limited relative RMSE <= 2%.
+// The bound the path method is held to on the Cornell box: band-limited relative RMSE <= 2%
+// against the independent renderer's (Cycles) reference.
 // Budget: rel RMSE^2 = bias^2 + our noise^2 + reference noise^2. Reference noise
 // sqrt(sum stderr_L2^2 / sum E_L2^2) is ~0.05% (shared scenes README). Our noise was measured
 // from seed pairs at 8192 samples: 3.5% (0.33% with 0 bounces, 1.0% with 1: the deep, Russian-

@@ -1,5 +1,5 @@
 // Stability where methods fail: each test prints its figure ("[stability ...]") and asserts a
-// bound. The list, and where each item lives:
+// bound. The places where light-probe methods are known to fail, and where each test lives:
 //  1. VPL corner spikes per clamp mode: VplRoom.SphericalClampKeepsTheCornerSpikeNearTheAverage
 //     in test_vpl.cpp (a probe 5 cm from a corner, every clamp mode, bias against the unclamped
 //     gather); not repeated here.

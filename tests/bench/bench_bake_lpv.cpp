@@ -5,7 +5,7 @@
 //
 // Accuracy is the band-limited relative RMSE of the baker test (BakeCornell): E from each
 // probe's L2 SH at the 64 reference normals against E_L2 at the 8 reference points, with a
-// 1x1x1 volume (one probe) at each point. The targets: with default settings, rel RMSE
+// 1x1x1 volume (one probe) at each point. The method's targets: with default settings, rel RMSE
 // <= 20%, and a 16x16x16 volume over the box baked in <= 3% of the path method's time at 4096
 // samples. Each benchmark prints its table; the counters carry the same figures.
 #include <cstdio>

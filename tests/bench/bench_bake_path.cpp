@@ -65,7 +65,7 @@ void BM_RaysIncoherent(benchmark::State& state) {
 }
 BENCHMARK(BM_RaysIncoherent)->Iterations(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// The figure: a 32x32x32 volume over the box at 256 samples.
+// The speed figure: a 32x32x32 volume over the box at 256 samples.
 void BM_BakePath32Cubed256(benchmark::State& state) {
     const Scene& scene = bench::cornellScene();
     BakeConfig config;

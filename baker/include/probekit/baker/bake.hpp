@@ -2,8 +2,9 @@
 //
 // A bake takes a Scene (scene.hpp) and a BakeConfig (usually parsed from the JSON config and
 // overridden by command-line flags), places the volumes, runs the lighting method for every
-// probe on a thread pool, marks probes inside geometry invalid and fills them by dilation, and
-// returns a PvolFile ready to write. Output is bit-identical for any thread count.
+// probe on the baker's parallel loop, marks probes inside geometry invalid and fills them by
+// dilation, and returns a PvolFile ready to write. Output is bit-identical for any thread
+// count.
 #pragma once
 
 #include <cstdint>
