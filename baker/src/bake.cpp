@@ -158,68 +158,169 @@ glm::vec3 probeSpacing(const VolumeDesc& desc) {
     return desc.grid.spacing();
 }
 
-Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeConfig& config) {
+namespace {
+
+struct PlacedBox {
+    grid::Aabb box;
+    grid::RigidFrame frame;
+};
+
+// The volume's box before padding: custom, the scene's or the listed nodes' world bounds, or
+// one node's local bounds in its own (rigid) frame.
+Result<PlacedBox> unpaddedBox(const Scene& scene, const VolumeConfig& v, const std::string& label) {
+    PlacedBox placed;
+    switch (v.bounds.mode) {
+    case BoundsMode::Custom:
+        placed.box = grid::Aabb{v.bounds.min, v.bounds.max};
+        return placed;
+    case BoundsMode::AutoWorld:
+        if (v.bounds.nodes.empty()) {
+            if (!scene.hasGeometry()) {
+                return makeError(ErrorCode::InvalidArgument,
+                                 label + ".bounds: the scene has no geometry, so automatic "
+                                         "bounds are empty; give custom bounds");
+            }
+            placed.box = scene.bounds;
+            return placed;
+        } else {
+            bool first = true;
+            for (const std::string& key : v.bounds.nodes) {
+                const SceneNode* node = findNode(scene, key);
+                if (!node) {
+                    return makeError(ErrorCode::InvalidArgument,
+                                     label + ".bounds.nodes: no node named '" + key + "'");
+                }
+                if (!node->hasMesh) {
+                    continue;
+                }
+                placed.box = first ? node->worldBounds : unionOf(placed.box, node->worldBounds);
+                first = false;
+            }
+            if (first) {
+                return makeError(ErrorCode::InvalidArgument,
+                                 label + ".bounds.nodes: none of the listed nodes has a mesh");
+            }
+            return placed;
+        }
+    case BoundsMode::AutoLocal: {
+        const SceneNode* node = findNode(scene, v.bounds.node);
+        if (!node) {
+            return makeError(ErrorCode::InvalidArgument,
+                             label + ".bounds.node: no node named '" + v.bounds.node + "'");
+        }
+        if (!node->hasMesh) {
+            return makeError(ErrorCode::InvalidArgument, label + ".bounds.node: node '" +
+                                                             v.bounds.node +
+                                                             "' has no mesh to take bounds from");
+        }
+        glm::vec3 scale;
+        decompose(node->world, placed.frame, scale);
+        // The frame is rigid, so the node's scale is folded into the local box.
+        const glm::vec3 a = node->localBounds.min * scale;
+        const glm::vec3 b = node->localBounds.max * scale;
+        placed.box = grid::Aabb{glm::min(a, b), glm::max(a, b)};
+        return placed;
+    }
+    }
+    return placed;
+}
+
+// The automatic padding rule (bake.hpp, kAutoPadding*): the share of a lattice of test points
+// in the box (in `frame`) that lie inside geometry by the bake's validity rule.
+float insideShare(const RayTracer& tracer, const PlacedBox& placed, float backface_threshold) {
+    const uint32_t n = kAutoPaddingLattice;
+    const glm::vec3 size = placed.box.size();
+    uint32_t inside = 0;
+    for (uint32_t i = 0; i < n * n * n; ++i) {
+        const glm::vec3 cell(float(i % n), float(i / n % n), float(i / (n * n)));
+        const glm::vec3 local = placed.box.min + (cell + 0.5f) / float(n) * size;
+        const glm::vec3 origin = placed.frame.toWorld(local);
+        uint32_t back = 0;
+        for (uint32_t r = 0; r < kAutoPaddingRays; ++r) {
+            // Fibonacci sphere: evenly spread, deterministic directions.
+            const float z = 1.0f - (2.0f * float(r) + 1.0f) / float(kAutoPaddingRays);
+            const float phi = float(r) * 2.39996323f;
+            const float s = std::sqrt(std::max(0.0f, 1.0f - z * z));
+            const std::optional<Hit> hit =
+                tracer.intersect(origin, glm::vec3(s * std::cos(phi), s * std::sin(phi), z));
+            back += hit && hit->backFace;
+        }
+        inside += float(back) / float(kAutoPaddingRays) > backface_threshold;
+    }
+    return float(inside) / float(n * n * n);
+}
+
+// Probes (or bricks) per axis of an automatic resolution, and a note when max_resolution cut it.
+glm::uvec3 automaticResolution(const VolumeConfig& v, const grid::Aabb& box, float density,
+                               const std::string& label, std::vector<std::string>& notes) {
+    const bool bricked = v.layout == VolumeLayout::Bricked;
+    const glm::vec3 size = box.size();
+    glm::uvec3 res;
+    glm::uvec3 asked;
+    for (int a = 0; a < 3; ++a) {
+        // Bricked: level-0 bricks, each spanning 3 probe spacings.
+        const float probes = size[a] * density / (bricked ? float(brick::kBrickCells) : 1.0f);
+        asked[a] = probes >= float(1u << 30) ? (1u << 30) : roundToPowerOfTwo(probes);
+        res[a] = std::min(asked[a], v.maxResolution);
+        if (v.position == grid::PositionMode::Corner) {
+            res[a] = std::max(res[a], 2u);
+        }
+    }
+    if (glm::any(glm::greaterThan(asked, glm::uvec3(v.maxResolution)))) {
+        const glm::vec3 spacing = size / glm::vec3(bricked ? res * brick::kBrickCells : res);
+        char text[512];
+        std::snprintf(text, sizeof text,
+                      "%s: %g probes/m over %.4g x %.4g x %.4g m asks %u x %u x %u %s; "
+                      "max_resolution %u caps it to %u x %u x %u (probe spacing %.3g x %.3g x "
+                      "%.3g m); raise max_resolution, use layout bricked, or check the scene's "
+                      "units (--scale)",
+                      label.c_str(), double(density), size.x, size.y, size.z, asked.x, asked.y,
+                      asked.z, bricked ? "level-0 bricks" : "probes", v.maxResolution, res.x, res.y,
+                      res.z, spacing.x, spacing.y, spacing.z);
+        notes.emplace_back(text);
+    }
+    return res;
+}
+
+} // namespace
+
+Result<VolumePlan> planVolumes(const Scene& scene, const BakeConfig& config) {
     const std::vector<VolumeConfig> configs = volumeConfigs(config);
-    std::vector<VolumeDesc> out;
+    VolumePlan plan;
+    std::unique_ptr<RayTracer> tracer; // built only if a volume's padding is automatic
     for (size_t index = 0; index < configs.size(); ++index) {
         const VolumeConfig& v = configs[index];
         const std::string label = volumeLabel(index, v);
-        grid::Aabb box;
-        grid::RigidFrame frame;
-        switch (v.bounds.mode) {
-        case BoundsMode::Custom:
-            box = grid::Aabb{v.bounds.min, v.bounds.max};
-            break;
-        case BoundsMode::AutoWorld:
-            if (v.bounds.nodes.empty()) {
-                if (!scene.hasGeometry()) {
-                    return makeError(ErrorCode::InvalidArgument,
-                                     label + ".bounds: the scene has no geometry, so automatic "
-                                             "bounds are empty; give custom bounds");
-                }
-                box = scene.bounds;
-            } else {
-                bool first = true;
-                for (const std::string& key : v.bounds.nodes) {
-                    const SceneNode* node = findNode(scene, key);
-                    if (!node) {
-                        return makeError(ErrorCode::InvalidArgument,
-                                         label + ".bounds.nodes: no node named '" + key + "'");
-                    }
-                    if (!node->hasMesh) {
-                        continue;
-                    }
-                    box = first ? node->worldBounds : unionOf(box, node->worldBounds);
-                    first = false;
-                }
-                if (first) {
-                    return makeError(ErrorCode::InvalidArgument,
-                                     label + ".bounds.nodes: none of the listed nodes has a mesh");
-                }
-            }
-            break;
-        case BoundsMode::AutoLocal: {
-            const SceneNode* node = findNode(scene, v.bounds.node);
-            if (!node) {
-                return makeError(ErrorCode::InvalidArgument,
-                                 label + ".bounds.node: no node named '" + v.bounds.node + "'");
-            }
-            if (!node->hasMesh) {
-                return makeError(ErrorCode::InvalidArgument,
-                                 label + ".bounds.node: node '" + v.bounds.node +
-                                     "' has no mesh to take bounds from");
-            }
-            glm::vec3 scale;
-            decompose(node->world, frame, scale);
-            // The frame is rigid, so the node's scale is folded into the local box.
-            const glm::vec3 a = node->localBounds.min * scale;
-            const glm::vec3 b = node->localBounds.max * scale;
-            box = grid::Aabb{glm::min(a, b), glm::max(a, b)};
-            break;
+        Result<PlacedBox> placed = unpaddedBox(scene, v, label);
+        if (!placed) {
+            return placed.error();
         }
+        grid::Aabb box = placed.value().box;
+        float padding = v.bounds.padding.value_or(0.0f);
+        if (!v.bounds.padding && v.bounds.mode != BoundsMode::Custom && scene.hasGeometry()) {
+            if (!tracer) {
+                Result<std::unique_ptr<RayTracer>> made = RayTracer::create(scene);
+                if (!made) {
+                    return made.error();
+                }
+                tracer = std::move(made).value();
+            }
+            const float share = insideShare(*tracer, placed.value(), config.backfaceThreshold);
+            if (share > kAutoPaddingInsideShare) {
+                const glm::vec3 size = box.size();
+                padding = kAutoPaddingGrowth * std::max({size.x, size.y, size.z});
+                char text[320];
+                std::snprintf(text, sizeof text,
+                              "%s: %.0f%% of the test points in the scene's box lie inside "
+                              "geometry (a closed object): padding %.4g m on every side so that "
+                              "most probes lie outside it (set bounds.padding or --padding to "
+                              "choose)",
+                              label.c_str(), 100.0 * share, double(padding));
+                plan.notes.emplace_back(text);
+            }
         }
-        box.min -= glm::vec3(v.bounds.padding);
-        box.max += glm::vec3(v.bounds.padding);
+        box.min -= glm::vec3(padding);
+        box.max += glm::vec3(padding);
         const glm::vec3 extent = box.size();
         const float longest = std::max({extent.x, extent.y, extent.z});
         const float density =
@@ -235,23 +336,10 @@ Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeCon
             }
         }
         const bool bricked = v.layout == VolumeLayout::Bricked;
-        glm::uvec3 res;
-        if (v.resolution) {
-            res = *v.resolution;
-        } else {
-            const glm::vec3 size = box.size();
-            for (int a = 0; a < 3; ++a) {
-                // Bricked: level-0 bricks, each spanning 3 probe spacings.
-                const float probes =
-                    size[a] * density / (bricked ? float(brick::kBrickCells) : 1.0f);
-                res[a] = std::min(roundToPowerOfTwo(probes), v.maxResolution);
-                if (v.position == grid::PositionMode::Corner) {
-                    res[a] = std::max(res[a], 2u);
-                }
-            }
-        }
+        const glm::uvec3 res =
+            v.resolution ? *v.resolution : automaticResolution(v, box, density, label, plan.notes);
         Result<grid::GridLayout> layout = grid::GridLayout::make(
-            box, res, bricked ? grid::PositionMode::Center : v.position, frame);
+            box, res, bricked ? grid::PositionMode::Center : v.position, placed.value().frame);
         if (!layout) {
             return makeError(layout.error().code, label + ": " + layout.error().message);
         }
@@ -266,9 +354,10 @@ Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeCon
             desc.layout = VolumeLayout::Bricked;
             desc.bricks.maxLevel = v.maxLevel;
         }
-        out.push_back(std::move(desc));
+        plan.volumes.push_back(std::move(desc));
+        plan.padding.push_back(padding);
     }
-    const uint64_t bytes = estimateBakeMemory(out);
+    const uint64_t bytes = estimateBakeMemory(plan.volumes);
     if (bytes > config.maxMemoryBytes) {
         return makeError(
             ErrorCode::OutOfRange,
@@ -276,7 +365,15 @@ Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeCon
                 " MiB, more than max_memory_mb = " + std::to_string(config.maxMemoryBytes >> 20) +
                 " (lower the resolution or raise --max-memory)");
     }
-    return out;
+    return plan;
+}
+
+Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeConfig& config) {
+    Result<VolumePlan> plan = planVolumes(scene, config);
+    if (!plan) {
+        return plan.error();
+    }
+    return std::move(plan).value().volumes;
 }
 
 VplConfig resolveVplConfig(const Scene& scene, const std::vector<VolumeDesc>& volumes,
@@ -592,8 +689,9 @@ void finishStats(const BakeRun& run, const MethodState& method, BakeStats& stats
 
 // The metadata records what was actually baked: the resolved resolution of every volume and
 // the method's resolved settings.
-BakeMetadata bakeMetadata(const BakeRun& run, const std::vector<VolumeDesc>& descs,
-                          const MethodState& method, double seconds) {
+BakeMetadata bakeMetadata(const BakeRun& run, const VolumePlan& plan, const MethodState& method,
+                          double seconds) {
+    const std::vector<VolumeDesc>& descs = plan.volumes;
     const BakeConfig& config = run.config;
     BakeMetadata m;
     m.toolVersion = "probekit " PROBEKIT_VERSION_STRING;
@@ -602,6 +700,7 @@ BakeMetadata bakeMetadata(const BakeRun& run, const std::vector<VolumeDesc>& des
     resolved.volumes = volumeConfigs(config);
     for (size_t i = 0; i < resolved.volumes.size(); ++i) {
         resolved.volumes[i].resolution = descs[i].grid.resolution();
+        resolved.volumes[i].bounds.padding = plan.padding[i];
     }
     if (method.vplConfig) {
         resolved.vpl = *method.vplConfig; // the chosen count and clamp distance
@@ -623,22 +722,29 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     if (Result<void> valid = validateBakeConfig(config); !valid) {
         return valid.error();
     }
-    Result<std::vector<VolumeDesc>> descs = resolveVolumes(scene, config);
-    if (!descs) {
-        return descs.error();
+    if (scene.unitScale != config.scale) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "scale: the config says " + std::to_string(config.scale) +
+                             " m per scene unit, but the scene was loaded with " +
+                             std::to_string(scene.unitScale) + " (LoadOptions::scale)");
     }
+    Result<VolumePlan> plan = planVolumes(scene, config);
+    if (!plan) {
+        return plan.error();
+    }
+    const std::vector<VolumeDesc>& descs = plan.value().volumes;
     Result<std::unique_ptr<RayTracer>> tracer = RayTracer::create(scene);
     if (!tracer) {
         return tracer.error();
     }
     BakeRun run{scene, config, options, *tracer.value(), start, resolveThreads(options.threads)};
     BakeResult result;
+    result.warnings = plan.value().notes;
     result.stats.threads = run.threads;
-    const MethodState method = prepareMethod(run, descs.value(), result.stats);
+    const MethodState method = prepareMethod(run, descs, result.stats);
     const std::vector<VolumeConfig> volume_configs = volumeConfigs(config);
-    for (uint32_t vi = 0; vi < descs.value().size(); ++vi) {
-        Result<Volume> volume =
-            bakeVolume(run, method, descs.value()[vi], vi, volume_configs[vi], result);
+    for (uint32_t vi = 0; vi < descs.size(); ++vi) {
+        Result<Volume> volume = bakeVolume(run, method, descs[vi], vi, volume_configs[vi], result);
         if (!volume) {
             return volume.error();
         }
@@ -646,7 +752,7 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     }
     run.report();
     finishStats(run, method, result.stats);
-    result.file.metadata = bakeMetadata(run, descs.value(), method, result.stats.seconds);
+    result.file.metadata = bakeMetadata(run, plan.value(), method, result.stats.seconds);
     return result;
 }
 

@@ -496,6 +496,9 @@ const std::vector<Field<BakeConfig>>& topFields() {
               "volumes",
               "--method"),
         field("seed", &BakeConfig::seed, whole(0, UINT64_MAX), "", "random seed", "--seed"),
+        field("scale", &BakeConfig::scale, positive(), "m/unit",
+              "metres per scene unit (0.01: the file is in centimetres, 0.001: millimetres)",
+              "--scale"),
         {"max_memory_mb", whole(1, 1u << 30), "MiB",
          "dense volumes: the bake's working memory; bricked: their GPU bytes", "--max-memory",
          [](const BakeConfig& c) { return Json(c.maxMemoryBytes >> 20); },
@@ -600,8 +603,9 @@ const std::vector<Field<EnvironmentConfig>>& environmentFields() {
 
 const std::vector<Field<BoundsConfig>>& boundsFields() {
     static const std::vector<Field<BoundsConfig>> fields = {
-        field("padding", &BoundsConfig::padding, nonNegative(), "m",
-              "volume bounds: metres added on every side"),
+        field("padding", &BoundsConfig::padding, nonNegative().orAuto(), "m",
+              "volume bounds: metres added on every side (auto: grow around a closed object)",
+              "--padding"),
     };
     return fields;
 }

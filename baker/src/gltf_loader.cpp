@@ -1050,7 +1050,14 @@ Result<Scene> loadGltf(const std::filesystem::path& path, const LoadOptions& opt
                              file + ": " + (message.empty() ? "tinygltf failed" : message));
         }
         GltfLoader loader(model, file);
-        return loader.load(options.sceneIndex, hash, warning);
+        Result<Scene> scene = loader.load(options.sceneIndex, hash, warning);
+        if (scene) {
+            applyUnitScale(scene.value(), options.scale);
+            if (std::string w = implausibleSizeWarning(scene.value(), file); !w.empty()) {
+                scene.value().warnings.push_back(std::move(w));
+            }
+        }
+        return scene;
     } catch (const LoadError& e) {
         return makeError(e.code, e.message);
     } catch (const std::exception& e) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include <glm/geometric.hpp>
 
@@ -88,6 +89,54 @@ glm::vec3 Scene::emissionAt(uint32_t tri, glm::vec2 bary) const {
     }
     return m.emission *
            glm::vec3(images[m.emissiveTexture].sampleBilinear(interpolatedUv(*this, tri, bary)));
+}
+
+void applyUnitScale(Scene& scene, float scale) {
+    scene.unitScale *= scale;
+    if (scale == 1.0f) {
+        return;
+    }
+    for (glm::vec3& p : scene.positions) {
+        p *= scale;
+    }
+    scene.bounds = grid::Aabb{scene.bounds.min * scale, scene.bounds.max * scale};
+    const glm::mat4 to_metres = glm::mat4(glm::vec4(scale, 0, 0, 0), glm::vec4(0, scale, 0, 0),
+                                          glm::vec4(0, 0, scale, 0), glm::vec4(0, 0, 0, 1));
+    for (SceneNode& n : scene.nodes) {
+        n.world = to_metres * n.world;
+        n.worldBounds = grid::Aabb{n.worldBounds.min * scale, n.worldBounds.max * scale};
+    }
+    for (PunctualLight& l : scene.lights) {
+        l.position *= scale;
+        l.range *= scale;
+    }
+}
+
+std::string implausibleSizeWarning(const Scene& scene, const std::string& file) {
+    if (!scene.hasGeometry()) {
+        return {};
+    }
+    const glm::vec3 size = scene.bounds.size();
+    const float longest = std::max({size.x, size.y, size.z});
+    if (longest >= kPlausibleSceneMinMetres && longest <= kPlausibleSceneMaxMetres) {
+        return {};
+    }
+    char text[512];
+    if (longest > kPlausibleSceneMaxMetres) {
+        std::snprintf(text, sizeof text,
+                      "%s: the scene is %.4g m across (%.4g x %.4g x %.4g m), more than %g m: if "
+                      "the file is in centimetres, --scale 0.01 makes it %.4g m; in millimetres, "
+                      "--scale 0.001 makes it %.4g m (glTF says metres; exporters often write "
+                      "other units)",
+                      file.c_str(), longest, size.x, size.y, size.z, kPlausibleSceneMaxMetres,
+                      longest * 0.01f, longest * 0.001f);
+    } else {
+        std::snprintf(text, sizeof text,
+                      "%s: the scene is %.4g m across, less than %g m: if the file is in "
+                      "kilometres, --scale 1000 makes it %.4g m",
+                      file.c_str(), longest, kPlausibleSceneMinMetres, longest * 1000.0f);
+    }
+    return text;
 }
 
 } // namespace probekit::baker

@@ -89,7 +89,8 @@ TEST(BakeVolumes, AutoResolutionRoundsToPowersOfTwoAndCaps) {
     scene.triangles.push_back(glm::uvec3(0, 1, 2));
     BakeConfig c;
     VolumeConfig v;
-    v.density = 4.0f; // 8, 3.6, 160 probes -> 8, 4, capped 32
+    v.density = 4.0f;        // 8, 3.6, 160 probes -> 8, 4, capped 32
+    v.bounds.padding = 0.0f; // automatic padding traces rays, which this scene cannot take
     c.volumes = {v};
     Result<std::vector<VolumeDesc>> d = resolveVolumes(scene, c);
     ASSERT_TRUE(d.ok()) << d.error().message;
@@ -101,12 +102,16 @@ TEST(BakeVolumes, DefaultDensityGivesSmallScenesAUsefulGrid) {
     scene.triangles.push_back(glm::uvec3(0, 1, 2));
     // The Cornell box (0.556 m): kMinAutoProbes / 0.556 = 14.4 probes/m -> 8 per axis.
     scene.bounds = {glm::vec3(0), glm::vec3(0.556f, 0.5488f, 0.5592f)};
-    Result<std::vector<VolumeDesc>> small = resolveVolumes(scene, BakeConfig{});
+    // Automatic padding traces rays, which this placement-only scene cannot take.
+    BakeConfig unpadded;
+    unpadded.volumes.resize(1);
+    unpadded.volumes[0].bounds.padding = 0.0f;
+    Result<std::vector<VolumeDesc>> small = resolveVolumes(scene, unpadded);
     ASSERT_TRUE(small.ok());
     EXPECT_EQ(small.value()[0].grid.resolution(), glm::uvec3(8, 8, 8));
     // A 10 m x 3 m x 6 m hall keeps kDefaultDensity (4/m): 40 -> 32, 12 -> 16, 24 -> 32.
     scene.bounds = {glm::vec3(0), glm::vec3(10.0f, 3.0f, 6.0f)};
-    Result<std::vector<VolumeDesc>> hall = resolveVolumes(scene, BakeConfig{});
+    Result<std::vector<VolumeDesc>> hall = resolveVolumes(scene, unpadded);
     ASSERT_TRUE(hall.ok());
     EXPECT_EQ(hall.value()[0].grid.resolution(), glm::uvec3(32, 16, 32));
 }

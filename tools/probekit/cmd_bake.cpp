@@ -1,4 +1,5 @@
 // `probekit bake`, `probekit scene` and `probekit bench-rays`.
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -156,14 +157,15 @@ Result<baker::BakeConfig> configFromOptions(const BakeOptionsCli& o) {
     return config;
 }
 
-Result<baker::Scene> loadScene(const BakeOptionsCli& o, const baker::EnvironmentConfig& env) {
+Result<baker::Scene> loadScene(const BakeOptionsCli& o, const baker::BakeConfig& config) {
     baker::LoadOptions load_options;
     load_options.sceneIndex = o.sceneIndex;
+    load_options.scale = config.scale;
     Result<baker::Scene> scene = baker::loadGltf(o.scene, load_options);
     if (!scene) {
         return scene;
     }
-    Result<baker::Environment> environment = baker::makeEnvironment(env);
+    Result<baker::Environment> environment = baker::makeEnvironment(config.environment);
     if (!environment) {
         return environment.error();
     }
@@ -381,7 +383,7 @@ int runBake(const BakeOptionsCli& o) {
     if (!config) {
         return fail(config.error());
     }
-    Result<baker::Scene> scene = loadScene(o, config.value().environment);
+    Result<baker::Scene> scene = loadScene(o, config.value());
     if (!scene) {
         return fail(scene.error());
     }
@@ -398,21 +400,29 @@ int runBake(const BakeOptionsCli& o) {
             printChoice(*choice);
         }
     }
-    Result<std::vector<VolumeDesc>> placed = baker::resolveVolumes(scene.value(), config.value());
-    if (!placed) {
-        return fail(placed.error());
+    Result<baker::VolumePlan> plan = baker::planVolumes(scene.value(), config.value());
+    if (!plan) {
+        return fail(plan.error());
     }
     if (!o.quiet) {
-        printMethod(o, scene.value(), config.value(), placed.value());
-        printVolumes(placed.value());
+        printMethod(o, scene.value(), config.value(), plan.value().volumes);
+        printVolumes(plan.value().volumes);
         std::fflush(stdout);
+    }
+    // What placing the volumes changed from what was asked, before the bake starts; the bake
+    // repeats these in its warnings, which are not printed twice.
+    const std::vector<std::string>& notes = plan.value().notes;
+    for (const std::string& n : notes) {
+        std::fprintf(stderr, "probekit bake: warning: %s\n", n.c_str());
     }
     Result<baker::BakeResult> result = bakeWithProgress(o, scene.value(), config.value());
     if (!result) {
         return fail(result.error());
     }
     for (const std::string& w : result.value().warnings) {
-        std::fprintf(stderr, "probekit bake: warning: %s\n", w.c_str());
+        if (std::find(notes.begin(), notes.end(), w) == notes.end()) {
+            std::fprintf(stderr, "probekit bake: warning: %s\n", w.c_str());
+        }
     }
     if (auto w = writePvol(o.output, result.value().file); !w) {
         return fail(w.error());

@@ -35,8 +35,21 @@ struct BoundsConfig {
     glm::vec3 max{0.0f};
     std::vector<std::string> nodes; // auto-world: node names (or decimal indices); empty = all
     std::string node;               // auto-local: node name (or decimal index)
-    float padding = 0.0f;           // metres added on every side
+    // Metres added on every side. Unset = automatic: 0 for custom bounds; for automatic bounds
+    // 0 unless the box's centre region lies inside geometry (a single closed object), when the
+    // box grows by kAutoPaddingGrowth x its longest side on every side (autoPadding).
+    std::optional<float> padding;
 };
+
+// The automatic padding rule: of a kAutoPaddingLattice^3 lattice of test points at the cell
+// centres of the unpadded box, each casting kAutoPaddingRays directions, more than
+// kAutoPaddingInsideShare inside geometry (the bake's validity rule, backface_threshold) means
+// the box hugs a closed object; adding half the longest side on every side then leaves the
+// object at most 1/8 of the volume, so most probes lie outside it.
+constexpr uint32_t kAutoPaddingLattice = 4;
+constexpr uint32_t kAutoPaddingRays = 64;
+constexpr float kAutoPaddingInsideShare = 0.5f;
+constexpr float kAutoPaddingGrowth = 0.5f;
 
 constexpr float kDefaultDensity = 4.0f; // probes per metre
 constexpr float kMinAutoProbes = 8.0f;  // along the longest axis of an automatic grid
@@ -177,6 +190,10 @@ std::string_view toString(Method method); // "path", "vpl", "lpv"
 struct BakeConfig {
     Method method = Method::Path;
     uint64_t seed = 1;
+    // Metres per scene unit (0.01 for a file in centimetres), applied when the scene is loaded
+    // (LoadOptions::scale); bake() checks that the scene was loaded with it. Custom bounds and
+    // every length setting are in metres after the scale.
+    float scale = 1.0f;
     PathConfig path;
     VplConfig vpl;
     LpvConfig lpv;
@@ -212,6 +229,18 @@ std::string describeConfig(const BakeConfig& config);
 
 // Builds the scene's environment from the config (loads lat-long images).
 Result<Environment> makeEnvironment(const EnvironmentConfig& config);
+
+// Where the volumes go and what placing them changed from what was asked.
+struct VolumePlan {
+    std::vector<VolumeDesc> volumes;
+    std::vector<float> padding;     // per volume, metres: the padding used (automatic resolved)
+    std::vector<std::string> notes; // each cap or automatic choice that changed what was asked
+};
+
+// Places every volume (bounds, frame, resolution) without baking, as resolveVolumes, and says
+// what it capped: an automatic resolution above max_resolution (with the resolution asked and
+// the spacing used) and an automatic padding that grew the box.
+Result<VolumePlan> planVolumes(const Scene& scene, const BakeConfig& config);
 
 // Places every volume (bounds, frame, resolution) without baking. Fails naming the volume and
 // field for zero-size or inverted bounds, unknown nodes, an empty scene with automatic bounds,

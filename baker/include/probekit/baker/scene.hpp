@@ -98,6 +98,7 @@ struct Scene {
     std::vector<SceneNode> nodes; // every node of the chosen scene, in glTF order
 
     grid::Aabb bounds;                 // world bounds of all triangles (empty scene: zero)
+    float unitScale = 1.0f;            // metres per file unit applied at load (LoadOptions::scale)
     uint64_t sourceHash = 0;           // xxHash64 of the glTF/glb file bytes
     std::vector<std::string> warnings; // non-fatal problems, each naming file and field
 
@@ -109,7 +110,24 @@ struct Scene {
 
 struct LoadOptions {
     std::optional<int> sceneIndex; // glTF scene to load; default: the file's default scene, or 0
+    // Metres per file unit: glTF says metres, but exports in centimetres (0.01) and millimetres
+    // (0.001) are common. Positions, node transforms, light positions and ranges are scaled;
+    // radiance, albedo and light intensities are not (they do not depend on length units).
+    float scale = 1.0f;
 };
+
+// A scene whose longest side (after the scale) is beyond these is probably not in metres:
+// loadGltf then warns and names the scales that would make it plausible.
+constexpr float kPlausibleSceneMaxMetres = 100.0f; // a large building; more is a cm/mm export
+constexpr float kPlausibleSceneMinMetres = 0.01f;  // a coin; less is an export in kilometres
+
+// Scales the scene's lengths by `scale` (metres per unit, > 0) and records it in unitScale.
+void applyUnitScale(Scene& scene, float scale);
+
+// The warning loadGltf gives for a scene whose size is implausible in metres (empty when its
+// longest side lies within kPlausibleSceneMinMetres..kPlausibleSceneMaxMetres, or it has no
+// geometry), naming the --scale values that would bring it within.
+std::string implausibleSizeWarning(const Scene& scene, const std::string& file);
 
 // Loads a .gltf or .glb (embedded or external buffers and images). Triangle primitives of
 // every index type and non-indexed ones are loaded; points and lines are skipped with a

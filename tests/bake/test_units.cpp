@@ -1,0 +1,183 @@
+// Scenes not made for the baker: files in centimetres or millimetres (LoadOptions::scale, the
+// implausible-size warning), a single closed object that automatic bounds would fill with
+// invalid probes (automatic padding), and automatic resolutions that max_resolution caps (the
+// note that says what was asked and what is used).
+#include <algorithm>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "bake_test_support.hpp"
+#include "probekit/baker/bake.hpp"
+#include "probekit/baker/generators.hpp"
+
+using namespace probekit;
+using namespace probekit::baker;
+
+namespace {
+
+// A closed cube [lo, hi]^3, 12 triangles wound outwards (front faces outside), in open space
+// under a constant sky.
+Scene closedCube(float lo, float hi) {
+    Scene s;
+    for (int i = 0; i < 8; ++i) {
+        s.positions.emplace_back(i & 1 ? hi : lo, i & 2 ? hi : lo, i & 4 ? hi : lo);
+    }
+    // Each face as two triangles, counter-clockwise seen from outside.
+    const glm::uvec3 tris[] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                               {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+    s.triangles.assign(std::begin(tris), std::end(tris));
+    s.uvs.assign(8, glm::vec2(0.0f));
+    s.triangleMaterial.assign(12, 0);
+    s.triangleNode.assign(12, -1);
+    s.materials.resize(1);
+    s.bounds = {glm::vec3(lo), glm::vec3(hi)};
+    s.environment.type = Environment::Type::Constant;
+    s.environment.constant = glm::vec3(1.0f);
+    return s;
+}
+
+bool anyNoteHas(const std::vector<std::string>& notes, const std::string& text) {
+    return std::any_of(notes.begin(), notes.end(),
+                       [&](const std::string& n) { return n.find(text) != std::string::npos; });
+}
+
+// A single closed object: automatic bounds hug it, so without padding every probe is inside.
+TEST(AutoPadding, AClosedObjectGetsHalfItsSizeOnEverySide) {
+    const Scene cube = closedCube(0.0f, 1.0f);
+    Result<VolumePlan> plan = planVolumes(cube, BakeConfig{});
+    ASSERT_TRUE(plan.ok()) << plan.error().message;
+    ASSERT_EQ(plan.value().padding.size(), 1u);
+    EXPECT_FLOAT_EQ(plan.value().padding[0], kAutoPaddingGrowth * 1.0f);
+    EXPECT_TRUE(anyNoteHas(plan.value().notes, "a closed object")) << plan.value().notes.size();
+    const grid::Aabb box = plan.value().volumes[0].grid.bounds();
+    EXPECT_FLOAT_EQ(box.min.x, -0.5f);
+    EXPECT_FLOAT_EQ(box.max.y, 1.5f);
+
+    // Baked, most probes lie outside the cube: the cube is 1/8 of the box, so at most that
+    // share plus the probes on its faces may be invalid; before the padding every one was.
+    BakeConfig config;
+    config.path.samples = 64;
+    Result<BakeResult> baked = bake(cube, config);
+    ASSERT_TRUE(baked.ok()) << baked.error().message;
+    const double invalid =
+        double(baked.value().stats.invalidProbes) / double(baked.value().stats.probes);
+    EXPECT_LE(invalid, 0.2) << baked.value().stats.invalidProbes << " of "
+                            << baked.value().stats.probes;
+    EXPECT_TRUE(anyNoteHas(baked.value().warnings, "a closed object"));
+
+    // An explicit padding (0 too) is kept as given.
+    BakeConfig zero;
+    zero.volumes.push_back(VolumeConfig{});
+    zero.volumes[0].bounds.padding = 0.0f;
+    Result<VolumePlan> hugged = planVolumes(cube, zero);
+    ASSERT_TRUE(hugged.ok());
+    EXPECT_EQ(hugged.value().padding[0], 0.0f);
+    EXPECT_TRUE(hugged.value().notes.empty());
+    Result<BakeResult> inside = bake(cube, [&] {
+        BakeConfig c = zero;
+        c.path.samples = 64;
+        c.dilate = false;
+        return c;
+    }());
+    ASSERT_TRUE(inside.ok());
+    EXPECT_EQ(inside.value().stats.invalidProbes, inside.value().stats.probes);
+}
+
+// Rooms seen from inside (the bundled scenes) keep their bounds: their test points see front
+// faces.
+TEST(AutoPadding, RoomsAndOpenScenesAreNotPadded) {
+    for (const char* name : {"cornell", "thin-wall", "courtyard"}) {
+        SCOPED_TRACE(name);
+        const Scene scene = test::generatedScene(name);
+        Result<VolumePlan> plan = planVolumes(scene, BakeConfig{});
+        ASSERT_TRUE(plan.ok()) << plan.error().message;
+        EXPECT_EQ(plan.value().padding[0], 0.0f);
+        EXPECT_FALSE(anyNoteHas(plan.value().notes, "closed object"));
+        const grid::Aabb box = plan.value().volumes[0].grid.bounds();
+        EXPECT_EQ(box.min, scene.bounds.min);
+        EXPECT_EQ(box.max, scene.bounds.max);
+    }
+}
+
+TEST(UnitScale, LoadingInCentimetresScalesLengthsNotLight) {
+    const auto dir = test::tempDir("unit_scale");
+    ASSERT_TRUE(writeGeneratedScene("thin-wall", dir / "wall.gltf").ok());
+    const Scene metres = test::loadOrFail(dir / "wall.gltf");
+    LoadOptions cm;
+    cm.scale = 0.01f;
+    Result<Scene> scaled = loadGltf(dir / "wall.gltf", cm);
+    ASSERT_TRUE(scaled.ok()) << scaled.error().message;
+    const Scene& s = scaled.value();
+    EXPECT_EQ(s.unitScale, 0.01f);
+    ASSERT_EQ(s.positions.size(), metres.positions.size());
+    for (size_t i = 0; i < s.positions.size(); ++i) {
+        EXPECT_EQ(s.positions[i], metres.positions[i] * 0.01f);
+    }
+    EXPECT_EQ(s.bounds.max, metres.bounds.max * 0.01f);
+    ASSERT_EQ(s.lights.size(), metres.lights.size());
+    ASSERT_FALSE(s.lights.empty());
+    EXPECT_EQ(s.lights[0].position, metres.lights[0].position * 0.01f);
+    EXPECT_EQ(s.lights[0].intensity, metres.lights[0].intensity); // W/sr: no length in it
+    for (size_t n = 0; n < s.nodes.size(); ++n) {
+        const glm::vec4 p = s.nodes[n].world * glm::vec4(1.0f, 2.0f, 3.0f, 1.0f);
+        const glm::vec4 q = metres.nodes[n].world * glm::vec4(1.0f, 2.0f, 3.0f, 1.0f);
+        EXPECT_NEAR(p.x, 0.01f * q.x, 1e-6f);
+        EXPECT_NEAR(p.z, 0.01f * q.z, 1e-6f);
+    }
+    // 8 m x 2.5 m x 4 m at 1 cm per unit is 8 cm across: plausible, no warning.
+    EXPECT_TRUE(implausibleSizeWarning(s, "wall.gltf").empty());
+}
+
+TEST(UnitScale, AnImplausibleSizeWarnsAndNamesTheScales) {
+    const auto dir = test::tempDir("unit_scale_warn");
+    ASSERT_TRUE(writeGeneratedScene("cornell", dir / "box.gltf").ok());
+    LoadOptions as_mm; // the 0.56 m box read as if its file were in millimetres x 1000
+    as_mm.scale = 1000.0f;
+    Result<Scene> huge = loadGltf(dir / "box.gltf", as_mm);
+    ASSERT_TRUE(huge.ok());
+    ASSERT_FALSE(huge.value().warnings.empty());
+    const std::string& w = huge.value().warnings.back();
+    EXPECT_NE(w.find("559.2 m across"), std::string::npos) << w;
+    EXPECT_NE(w.find("--scale 0.01 makes it 5.592 m"), std::string::npos) << w;
+    EXPECT_NE(w.find("--scale 0.001 makes it 0.5592 m"), std::string::npos) << w;
+    const Scene metres = test::loadOrFail(dir / "box.gltf");
+    EXPECT_TRUE(implausibleSizeWarning(metres, "box.gltf").empty());
+}
+
+TEST(UnitScale, BakeRefusesAConfigScaleTheSceneWasNotLoadedWith) {
+    const Scene scene = closedCube(0.0f, 1.0f);
+    BakeConfig c;
+    c.scale = 0.01f;
+    Result<BakeResult> r = bake(scene, c);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.error().message.find("scale: the config says 0.01"), std::string::npos)
+        << r.error().message;
+}
+
+// An automatic resolution beyond max_resolution is capped with a note that says both.
+TEST(ResolutionCap, TheNoteSaysWhatWasAskedAndWhatIsUsed) {
+    const Scene cube = closedCube(0.0f, 10.0f);
+    BakeConfig c;
+    c.volumes.push_back(VolumeConfig{});
+    c.volumes[0].bounds.padding = 0.0f;
+    c.volumes[0].density = 100.0f; // 1000 probes per axis asked: 1024 after rounding
+    Result<VolumePlan> plan = planVolumes(cube, c);
+    ASSERT_TRUE(plan.ok()) << plan.error().message;
+    EXPECT_EQ(plan.value().volumes[0].grid.resolution(), glm::uvec3(32));
+    ASSERT_EQ(plan.value().notes.size(), 1u);
+    const std::string& n = plan.value().notes[0];
+    EXPECT_NE(n.find("100 probes/m over 10 x 10 x 10 m asks 1024 x 1024 x 1024 probes"),
+              std::string::npos)
+        << n;
+    EXPECT_NE(n.find("max_resolution 32 caps it to 32 x 32 x 32 (probe spacing 0.312"),
+              std::string::npos)
+        << n;
+    // Within the cap: no note.
+    c.volumes[0].density = 3.0f;
+    Result<VolumePlan> fine = planVolumes(cube, c);
+    ASSERT_TRUE(fine.ok());
+    EXPECT_TRUE(fine.value().notes.empty());
+}
+
+} // namespace
