@@ -1,13 +1,13 @@
 #include "probekit/formats/brick.hpp"
 
 #include <algorithm>
-#include <cassert>
 #include <cmath>
 #include <limits>
 #include <numeric>
 
 #include <glm/common.hpp>
 
+#include "probekit/formats/check.hpp"
 #include "probekit/formats/visibility.hpp"
 
 namespace probekit::brick {
@@ -155,9 +155,22 @@ sh::ShRgb interpolate(std::span<const sh::ShRgb> brick_probes, glm::vec3 local,
 void stitchBorders(glm::uvec3 top_bricks, const BrickLayout& layout,
                    std::span<const uint32_t> indirection, std::span<sh::ShRgb> probes,
                    std::span<const uint8_t> visibility) {
+    // Always on (ARCHITECTURE.md, "Preconditions"): every loop below indexes the indirection,
+    // the per-level tables and the probe and visibility spans with these sizes, levels and
+    // brick indices, unchecked. Linear in the cells, far below the stitching itself.
+    PK_CHECK(layout.maxLevel <= kMaxLevel);
     const glm::uvec3 cells = finestCells(top_bricks, layout.maxLevel);
-    assert(indirection.size() == size_t(cells.x) * cells.y * cells.z);
-    assert(probes.size() == layout.bricks.size() * kBrickProbeCount);
+    PK_CHECK(indirection.size() == size_t(cells.x) * cells.y * cells.z);
+    PK_CHECK(probes.size() == layout.bricks.size() * kBrickProbeCount);
+    PK_CHECK(visibility.empty() || visibility.size() == probes.size() * visibility::kBytesPerProbe);
+    const bool levels_within_max_level =
+        std::all_of(layout.bricks.begin(), layout.bricks.end(),
+                    [&layout](const Brick& b) { return b.level <= layout.maxLevel; });
+    PK_CHECK(levels_within_max_level);
+    const bool indirection_names_listed_bricks =
+        std::all_of(indirection.begin(), indirection.end(),
+                    [&layout](uint32_t b) { return b < layout.bricks.size(); });
+    PK_CHECK(indirection_names_listed_bricks);
     const auto precedes = [&](uint32_t a, uint32_t b) {
         const uint8_t level_a = layout.bricks[a].level, level_b = layout.bricks[b].level;
         return level_a < level_b || (level_a == level_b && a < b);

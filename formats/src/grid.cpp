@@ -5,6 +5,8 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "probekit/formats/check.hpp"
+
 namespace probekit::grid {
 
 std::string_view toString(PositionMode mode) {
@@ -64,10 +66,16 @@ Result<void> validateBounds(const Aabb& bounds) {
 }
 
 GridLayout::GridLayout(Aabb bounds, glm::uvec3 resolution, PositionMode mode, RigidFrame frame)
-    : m_bounds(bounds), m_resolution(resolution), m_mode(mode), m_frame(frame) {
-    assert(validateResolution(resolution, mode).ok());
-    assert(validateBounds(bounds).ok());
+    : GridLayout(bounds, resolution, mode, frame, Checked{}) {
+    // Always on (ARCHITECTURE.md, "Preconditions"): a zero or oversized resolution makes
+    // probeCount() and linearIndex() address memory the volume does not have.
+    PK_CHECK_OK(validateResolution(resolution, mode));
+    PK_CHECK_OK(validateBounds(bounds));
 }
+
+GridLayout::GridLayout(Aabb bounds, glm::uvec3 resolution, PositionMode mode, RigidFrame frame,
+                       Checked)
+    : m_bounds(bounds), m_resolution(resolution), m_mode(mode), m_frame(frame) {}
 
 Result<GridLayout> GridLayout::make(Aabb bounds, glm::uvec3 resolution, PositionMode mode,
                                     RigidFrame frame) {
@@ -90,7 +98,7 @@ Result<GridLayout> GridLayout::make(Aabb bounds, glm::uvec3 resolution, Position
             return makeError(ErrorCode::NonFinite, "frame.translation is not finite");
         }
     }
-    return GridLayout(bounds, resolution, mode, frame);
+    return GridLayout(bounds, resolution, mode, frame, Checked{});
 }
 
 glm::uvec3 GridLayout::probeCoords(size_t linear_index) const {

@@ -11,6 +11,7 @@
 #include <glm/gtc/quaternion.hpp>
 #include <glm/mat3x3.hpp>
 
+#include "probekit/formats/check.hpp"
 #include "vk_util.hpp"
 
 namespace probekit::runtime {
@@ -72,6 +73,25 @@ std::string extentText(glm::uvec3 e) {
 
 bool isBricked(const VolumeDesc& desc) {
     return desc.layout == VolumeLayout::Bricked;
+}
+
+// Whether the box [first, first + count) is non-empty and inside `resolution` on one axis,
+// written so that first + count cannot overflow.
+bool axisInside(uint32_t first, uint32_t count, uint32_t resolution) {
+    return count != 0 && first < resolution && count <= resolution - first;
+}
+
+bool boxInside(glm::uvec3 first, glm::uvec3 count, glm::uvec3 resolution) {
+    return axisInside(first.x, count.x, resolution.x) &&
+           axisInside(first.y, count.y, resolution.y) && axisInside(first.z, count.z, resolution.z);
+}
+
+// Whether a volume's stored texels are as many as its planes and probes need (validateVolume's
+// size rule, without its linear passes).
+bool holdsTexels(const Volume& volume) {
+    const size_t have =
+        volume.desc.storage == Storage::Float32 ? volume.texelsF32.size() : volume.texelsF16.size();
+    return have == size_t(volume.planes()) * volume.probeCount() * 4;
 }
 
 // Whether `incoming` has `current`'s texel format; the reason when not.
@@ -193,9 +213,12 @@ gpu::PkVolumeSetGpu packVolumeSetGpu(std::span<const VolumeDesc> descs,
                                      std::span<const float> blends, float normal_offset,
                                      std::span<const glm::uvec3> atlas_slots,
                                      std::span<const uint8_t> visibility) {
-    assert(!descs.empty() && descs.size() <= kMaxGpuVolumes && blends.size() == descs.size());
-    assert(atlas_slots.empty() || atlas_slots.size() == descs.size());
-    assert(visibility.empty() || visibility.size() == descs.size());
+    // Always on (ARCHITECTURE.md, "Preconditions"): set.volumes and set.order have room for
+    // kMaxGpuVolumes, and the loop reads one blend, atlas shape and flag per volume.
+    PK_CHECK(!descs.empty() && descs.size() <= kMaxGpuVolumes);
+    PK_CHECK(blends.size() == descs.size());
+    PK_CHECK(atlas_slots.empty() || atlas_slots.size() == descs.size());
+    PK_CHECK(visibility.empty() || visibility.size() == descs.size());
     gpu::PkVolumeSetGpu set{};
     set.header = glm::uvec4(uint32_t(descs.size()), 0u, 0u, 0u);
     set.params = glm::vec4(normal_offset, 0.0f, 0.0f, 0.0f);
@@ -218,10 +241,12 @@ size_t texelBoxBytes(const Volume& volume, glm::uvec3 count) {
 void packTexelBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count,
                   std::span<uint8_t> bytes) {
     const grid::GridLayout& layout = volume.desc.grid;
-    assert(!isBricked(volume.desc));
-    assert(glm::all(glm::greaterThanEqual(count, glm::uvec3(1u))));
-    assert(glm::all(glm::lessThanEqual(first + count, layout.resolution())));
-    assert(bytes.size() == texelBoxBytes(volume, count));
+    // Always on (ARCHITECTURE.md, "Preconditions"): the copies below read the box's rows from
+    // the volume's texels and write them to `bytes` unchecked. Once per upload, not per probe.
+    PK_CHECK(!isBricked(volume.desc));
+    PK_CHECK(boxInside(first, count, layout.resolution()));
+    PK_CHECK(holdsTexels(volume));
+    PK_CHECK(bytes.size() == texelBoxBytes(volume, count));
     const size_t texel_bytes = texelSize(volume.desc.storage);
     const auto* source = volume.desc.storage == Storage::Float32
                              ? reinterpret_cast<const uint8_t*>(volume.texelsF32.data())
@@ -248,10 +273,11 @@ size_t visibilityBoxBytes(glm::uvec3 count) {
 void packVisibilityBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count,
                        std::span<uint8_t> bytes) {
     const grid::GridLayout& layout = volume.desc.grid;
-    assert(!isBricked(volume.desc) && volume.hasVisibility());
-    assert(glm::all(glm::greaterThanEqual(count, glm::uvec3(1u))));
-    assert(glm::all(glm::lessThanEqual(first + count, layout.resolution())));
-    assert(bytes.size() == visibilityBoxBytes(count));
+    // Always on, as packTexelBox's.
+    PK_CHECK(!isBricked(volume.desc));
+    PK_CHECK(volume.visibility.size() == volume.probeCount() * visibility::kBytesPerProbe);
+    PK_CHECK(boxInside(first, count, layout.resolution()));
+    PK_CHECK(bytes.size() == visibilityBoxBytes(count));
     uint8_t* out = bytes.data();
     for (uint32_t z = first.z; z < first.z + count.z; ++z) {
         for (uint32_t y = first.y; y < first.y + count.y; ++y) {
@@ -799,6 +825,22 @@ Result<void> GpuVolumeSet::Impl::uploadWhole(size_t index, VolumeState which,
     return upload(index, which, source, glm::uvec3(0u), source.desc.grid.resolution());
 }
 
+namespace {
+
+// The update calls' index check (ARCHITECTURE.md, "Preconditions"): a slot index outside the
+// set is an error naming the call, never a read past the slots.
+Result<void> checkSlotIndex(const char* call, size_t index, size_t size) {
+    if (index >= size) {
+        return makeError(ErrorCode::OutOfRange, std::string("GpuVolumeSet::") + call +
+                                                    ": volume index " + std::to_string(index) +
+                                                    " is outside the set of " +
+                                                    std::to_string(size) + " volumes");
+    }
+    return {};
+}
+
+} // namespace
+
 GpuVolumeSet::GpuVolumeSet(std::unique_ptr<Impl> impl) : m_impl(std::move(impl)) {}
 GpuVolumeSet::GpuVolumeSet(GpuVolumeSet&&) noexcept = default;
 GpuVolumeSet& GpuVolumeSet::operator=(GpuVolumeSet&&) noexcept = default;
@@ -883,17 +925,17 @@ size_t GpuVolumeSet::size() const {
 }
 
 const VolumeDesc& GpuVolumeSet::desc(size_t index) const {
-    assert(index < size());
+    PK_CHECK(index < size());
     return m_impl->slots[index].desc;
 }
 
 const std::vector<uint8_t>& GpuVolumeSet::validity(size_t index) const {
-    assert(index < size());
+    PK_CHECK(index < size());
     return m_impl->slots[index].validity;
 }
 
 bool GpuVolumeSet::hasVisibility(size_t index) const {
-    assert(index < size());
+    PK_CHECK(index < size());
     return m_impl->slots[index].visibility;
 }
 
@@ -903,12 +945,12 @@ bool GpuVolumeSet::anyVisibility() const {
 }
 
 bool GpuVolumeSet::hasSecondState(size_t index) const {
-    assert(index < size());
+    PK_CHECK(index < size());
     return m_impl->slots[index].states[1].initialised;
 }
 
 float GpuVolumeSet::stateBlend(size_t index) const {
-    assert(index < size());
+    PK_CHECK(index < size());
     return m_impl->slots[index].blend;
 }
 
@@ -944,7 +986,7 @@ VkDescriptorSet GpuVolumeSet::descriptorSet() const {
 }
 
 Result<void> GpuVolumeSet::replaceVolume(size_t index, const Volume& volume, VolumeState state) {
-    assert(index < size());
+    PK_TRY(checkSlotIndex("replaceVolume", index, size()));
     Slot& slot = m_impl->slots[index];
     const std::string where = slotName(index, slot.desc);
     if (Result<void> valid = validateVolume(volume); !valid) {
@@ -1014,7 +1056,7 @@ Result<void> GpuVolumeSet::replaceVolume(size_t index, const Volume& volume, Vol
 
 Result<void> GpuVolumeSet::updateBox(size_t index, const Volume& source, glm::uvec3 first,
                                      glm::uvec3 count, VolumeState state) {
-    assert(index < size());
+    PK_TRY(checkSlotIndex("updateBox", index, size()));
     Slot& slot = m_impl->slots[index];
     const std::string where = slotName(index, slot.desc);
     if (Result<void> valid = validateVolume(source); !valid) {
@@ -1031,8 +1073,7 @@ Result<void> GpuVolumeSet::updateBox(size_t index, const Volume& source, glm::uv
     const glm::uvec3 res = slot.desc.grid.resolution();
     static constexpr const char* kAxes[3] = {"x", "y", "z"};
     for (int axis = 0; axis < 3; ++axis) {
-        // Written so that first + count cannot overflow.
-        if (count[axis] == 0 || first[axis] >= res[axis] || count[axis] > res[axis] - first[axis]) {
+        if (!axisInside(first[axis], count[axis], res[axis])) {
             return makeError(ErrorCode::OutOfRange,
                              where + ": box " + kAxes[axis] + " [" + std::to_string(first[axis]) +
                                  ", +" + std::to_string(count[axis]) +
@@ -1065,7 +1106,7 @@ Result<void> GpuVolumeSet::updateBox(size_t index, const Volume& source, glm::uv
 }
 
 Result<void> GpuVolumeSet::setFrame(size_t index, const grid::RigidFrame& frame) {
-    assert(index < size());
+    PK_TRY(checkSlotIndex("setFrame", index, size()));
     Slot& slot = m_impl->slots[index];
     const grid::GridLayout& layout = slot.desc.grid;
     Result<grid::GridLayout> moved =
@@ -1079,11 +1120,18 @@ Result<void> GpuVolumeSet::setFrame(size_t index, const grid::RigidFrame& frame)
     return {};
 }
 
-void GpuVolumeSet::setStateBlend(size_t index, float blend) {
-    assert(index < size());
-    assert(blend == 0.0f || hasSecondState(index));
-    m_impl->slots[index].blend = std::isnan(blend) ? 0.0f : std::clamp(blend, 0.0f, 1.0f);
+Result<void> GpuVolumeSet::setStateBlend(size_t index, float blend) {
+    PK_TRY(checkSlotIndex("setStateBlend", index, size()));
+    const float clamped = std::isnan(blend) ? 0.0f : std::clamp(blend, 0.0f, 1.0f);
+    if (clamped != 0.0f && !hasSecondState(index)) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "GpuVolumeSet::setStateBlend: " + slotName(index, desc(index)) +
+                             " has no second state to blend towards (upload one with "
+                             "replaceVolume(..., VolumeState::Secondary))");
+    }
+    m_impl->slots[index].blend = clamped;
     m_impl->dirty = true;
+    return {};
 }
 
 void GpuVolumeSet::setNormalOffset(float metres) {

@@ -1,8 +1,8 @@
 #include "probekit/runtime/point_sampler.hpp"
 
 #include <array>
-#include <cassert>
 #include <cstring>
+#include <string>
 
 #include <glm/vec4.hpp>
 
@@ -159,7 +159,13 @@ Result<GpuPointSampler> GpuPointSampler::create(GpuContext& context) {
 Result<std::vector<glm::vec3>> GpuPointSampler::irradiance(GpuVolumeSet& volumes,
                                                            std::span<const glm::vec3> positions,
                                                            std::span<const glm::vec3> normals) {
-    assert(positions.size() == normals.size());
+    // The staging loop below reads normals[i] for every position.
+    if (positions.size() != normals.size()) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "GpuPointSampler::irradiance: " + std::to_string(positions.size()) +
+                             " positions but " + std::to_string(normals.size()) +
+                             " normals (one normal per position)");
+    }
     std::vector<glm::vec3> out;
     if (positions.empty()) {
         return out;

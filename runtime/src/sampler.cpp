@@ -1,14 +1,16 @@
 #include "probekit/runtime/sampler.hpp"
 
 #include <algorithm>
-#include <cassert>
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <string>
 
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <glm/vec4.hpp>
+
+#include "probekit/formats/check.hpp"
 
 namespace probekit::runtime {
 
@@ -181,10 +183,15 @@ float distanceToVolume(const Volume& volume, glm::vec3 world_position) {
     return glm::length(outside);
 }
 
-VolumeSet::VolumeSet(std::vector<Volume> volumes) : m_volumes(std::move(volumes)) {
-    for ([[maybe_unused]] const Volume& v : m_volumes) {
-        assert(validateVolume(v).ok());
+VolumeSet::VolumeSet(std::vector<Volume> volumes) : VolumeSet(std::move(volumes), Validated{}) {
+    // Always on (ARCHITECTURE.md, "Preconditions"): sampling indexes texels, visibility and
+    // indirection with the sizes validateVolume checks.
+    for (const Volume& v : m_volumes) {
+        PK_CHECK_OK(validateVolume(v));
     }
+}
+
+VolumeSet::VolumeSet(std::vector<Volume> volumes, Validated) : m_volumes(std::move(volumes)) {
     m_byPriority.resize(m_volumes.size());
     std::iota(m_byPriority.begin(), m_byPriority.end(), size_t(0));
     // Stable, so equal priorities keep file order.
@@ -193,16 +200,29 @@ VolumeSet::VolumeSet(std::vector<Volume> volumes) : m_volumes(std::move(volumes)
     });
 }
 
+Result<VolumeSet> VolumeSet::make(std::vector<Volume> volumes) {
+    for (size_t i = 0; i < volumes.size(); ++i) {
+        if (Result<void> valid = validateVolume(volumes[i]); !valid) {
+            return makeError(valid.error().code,
+                             "volumes[" + std::to_string(i) + "]: " + valid.error().message);
+        }
+    }
+    return VolumeSet(std::move(volumes), Validated{});
+}
+
 Result<VolumeSet> VolumeSet::load(const std::filesystem::path& path) {
     Result<PvolFile> file = readPvol(path);
     if (!file) {
         return file.error();
     }
-    return VolumeSet(std::move(file.value().volumes));
+    // readPvol has validated every volume.
+    return VolumeSet(std::move(file.value().volumes), Validated{});
 }
 
 glm::vec3 VolumeSet::irradiance(glm::vec3 world_position, glm::vec3 normal) const {
-    assert(!empty());
+    // Always on: an empty set has no nearest volume to fall back to below. One branch per
+    // sample (its cost is measured in ARCHITECTURE.md, "Preconditions").
+    PK_CHECK(!empty());
     glm::vec3 weighted_sum(0.0f);
     float weight_sum = 0.0f;
     float remaining = 1.0f;

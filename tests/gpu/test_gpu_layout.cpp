@@ -290,3 +290,49 @@ TEST(GpuLayout, VisibilityTexelsArePerProbeBytesThenZeros) {
     EXPECT_EQ(runtime::brickedIntegerExtent({16, 8, 16}, {4, 2, 2}), glm::uvec3(16, 8, 24));
     EXPECT_EQ(runtime::brickedIntegerExtent({4, 2, 4}, {4, 4, 2}), glm::uvec3(16, 16, 12));
 }
+
+// The packing functions check their preconditions in every build type (gpu_volumes.hpp,
+// ARCHITECTURE.md "Preconditions"): each case below would read or write past an array.
+TEST(GpuLayoutDeathTest, PackingChecksItsPreconditions) {
+    const Volume v = makeVolume({4, 2, 8}, grid::PositionMode::Center, sh::Order::L1,
+                                Storage::Float32, {}, 0, 0.0f);
+    // A box leaving the grid (x 3 + 2 > 4), an empty one, one whose end overflows, and a
+    // buffer one byte short.
+    std::vector<uint8_t> bytes(runtime::texelBoxBytes(v, {2, 1, 1}));
+    EXPECT_DEATH(runtime::packTexelBox(v, {3, 0, 0}, {2, 1, 1}, bytes),
+                 "precondition failed in packTexelBox: boxInside");
+    EXPECT_DEATH(runtime::packTexelBox(v, {0, 0, 0}, {0, 1, 1}, bytes),
+                 "precondition failed in packTexelBox: boxInside");
+    EXPECT_DEATH(runtime::packTexelBox(v, {0xFFFFFFFFu, 0, 0}, {2, 1, 1}, bytes),
+                 "precondition failed in packTexelBox: boxInside");
+    std::vector<uint8_t> short_bytes(bytes.size() - 1);
+    EXPECT_DEATH(runtime::packTexelBox(v, {0, 0, 0}, {2, 1, 1}, short_bytes),
+                 "precondition failed in packTexelBox: bytes.size");
+    Volume truncated = v;
+    truncated.texelsF32.pop_back();
+    EXPECT_DEATH(runtime::packTexelBox(truncated, {0, 0, 0}, {2, 1, 1}, bytes),
+                 "precondition failed in packTexelBox: holdsTexels");
+    Volume bricked = v;
+    bricked.desc.layout = VolumeLayout::Bricked;
+    EXPECT_DEATH(runtime::packTexelBox(bricked, {0, 0, 0}, {2, 1, 1}, bytes),
+                 "precondition failed in packTexelBox: !isBricked");
+    // Visibility: the volume has none, then a box leaving the grid.
+    std::vector<uint8_t> texels(runtime::visibilityBoxBytes({2, 1, 1}));
+    EXPECT_DEATH(runtime::packVisibilityBox(v, {0, 0, 0}, {2, 1, 1}, texels),
+                 "precondition failed in packVisibilityBox: volume.visibility.size");
+    Volume visible = v;
+    visible.visibility.resize(v.probeCount() * visibility::kBytesPerProbe);
+    EXPECT_DEATH(runtime::packVisibilityBox(visible, {0, 2, 0}, {2, 1, 1}, texels),
+                 "precondition failed in packVisibilityBox: boxInside");
+    // The uniform buffer: more volumes than it has room for, and a missing blend factor.
+    const std::vector<VolumeDesc> too_many(runtime::kMaxGpuVolumes + 1, v.desc);
+    const std::vector<float> blends(too_many.size(), 0.0f);
+    EXPECT_DEATH(runtime::packVolumeSetGpu(too_many, blends, 0.0f),
+                 "precondition failed in packVolumeSetGpu: !descs.empty");
+    const std::vector<VolumeDesc> two{v.desc, v.desc};
+    EXPECT_DEATH(runtime::packVolumeSetGpu(two, std::span(blends.data(), 1), 0.0f),
+                 "precondition failed in packVolumeSetGpu: blends.size");
+    const std::vector<uint8_t> one_flag{1};
+    EXPECT_DEATH(runtime::packVolumeSetGpu(two, std::span(blends.data(), 2), 0.0f, {}, one_flag),
+                 "precondition failed in packVolumeSetGpu: visibility.empty");
+}

@@ -542,7 +542,7 @@ TEST_F(GpuSampler, SecondStateBlendOnTheGpu) {
             normals.push_back(s.normal);
         }
         for (float t : {0.0f, 0.5f, 1.0f, 0.25f}) {
-            gpu.value().setStateBlend(0, t);
+            ASSERT_TRUE(gpu.value().setStateBlend(0, t).ok());
             Result<std::vector<glm::vec3>> e =
                 sampler.value().irradiance(gpu.value(), positions, normals);
             ASSERT_TRUE(e.ok()) << e.error().message;
@@ -602,6 +602,67 @@ TEST_F(GpuSampler, RejectsBadInput) {
     // A failed call changes nothing.
     compareWithCpu(context(), gpu.value(), VolumeSet(volumes), samplePoints(volumes, 2000, 9),
                    kFloatRelative, 0.0f, "after_rejections");
+}
+
+// The index and state checks of the update calls and the point sampler's sizes hold in every
+// build type (gpu_volumes.hpp, point_sampler.hpp, ARCHITECTURE.md "Preconditions"): errors that
+// name the call and the argument, and nothing changes.
+TEST_F(GpuSampler, RejectsBadIndicesBlendsAndSizes) {
+    const std::vector<Volume> volumes = buildVolumes({cases()[0].specs});
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok());
+    GpuVolumeSet& set = gpu.value();
+    const size_t past = set.size();
+    const std::string outside = " is outside the set of " + std::to_string(past) + " volumes";
+    const auto expectOutOfRange = [&](const Result<void>& r, const std::string& call) {
+        ASSERT_FALSE(r.ok()) << call;
+        EXPECT_EQ(r.error().code, ErrorCode::OutOfRange);
+        EXPECT_EQ(r.error().message,
+                  "GpuVolumeSet::" + call + ": volume index " + std::to_string(past) + outside);
+    };
+    expectOutOfRange(set.replaceVolume(past, volumes[0]), "replaceVolume");
+    expectOutOfRange(set.updateBox(past, volumes[0], glm::uvec3(0), glm::uvec3(1)), "updateBox");
+    expectOutOfRange(set.setFrame(past, grid::RigidFrame{}), "setFrame");
+    expectOutOfRange(set.setStateBlend(past, 0.0f), "setStateBlend");
+
+    // Blending towards a second state that was never uploaded; 0 (and what clamps to 0) is fine.
+    const Result<void> blend = set.setStateBlend(0, 0.5f);
+    ASSERT_FALSE(blend.ok());
+    EXPECT_EQ(blend.error().code, ErrorCode::InvalidArgument);
+    EXPECT_NE(blend.error().message.find("has no second state"), std::string::npos)
+        << blend.error().message;
+    EXPECT_EQ(set.stateBlend(0), 0.0f);
+    EXPECT_TRUE(set.setStateBlend(0, 0.0f).ok());
+    EXPECT_TRUE(set.setStateBlend(0, -1.0f).ok());
+
+    Result<GpuPointSampler> sampler = GpuPointSampler::create(context());
+    ASSERT_TRUE(sampler.ok());
+    const std::vector<glm::vec3> positions(3, glm::vec3(0.5f));
+    const std::vector<glm::vec3> normals(2, glm::vec3(0.0f, 1.0f, 0.0f));
+    const Result<std::vector<glm::vec3>> mismatch =
+        sampler.value().irradiance(set, positions, normals);
+    ASSERT_FALSE(mismatch.ok());
+    EXPECT_EQ(mismatch.error().code, ErrorCode::InvalidArgument);
+    EXPECT_EQ(mismatch.error().message, "GpuPointSampler::irradiance: 3 positions but 2 normals "
+                                        "(one normal per position)");
+    compareWithCpu(context(), set, VolumeSet(volumes), samplePoints(volumes, 2000, 9),
+                   kFloatRelative, 0.0f, "after_index_rejections");
+}
+
+// The accessors cannot return an error: an index past the set aborts, naming the condition.
+TEST_F(GpuSampler, AccessorsCheckTheIndex) {
+    const std::vector<Volume> volumes = buildVolumes({cases()[0].specs});
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok());
+    const GpuVolumeSet& set = gpu.value();
+    const size_t past = set.size();
+    EXPECT_DEATH((void)set.desc(past), "precondition failed in desc: index < size");
+    EXPECT_DEATH((void)set.validity(past), "precondition failed in validity: index < size");
+    EXPECT_DEATH((void)set.hasVisibility(past),
+                 "precondition failed in hasVisibility: index < size");
+    EXPECT_DEATH((void)set.hasSecondState(past),
+                 "precondition failed in hasSecondState: index < size");
+    EXPECT_DEATH((void)set.stateBlend(past), "precondition failed in stateBlend: index < size");
 }
 
 } // namespace
@@ -758,7 +819,7 @@ TEST_F(GpuSampler, BrickedReplaceAndSecondState) {
     // A second state with the same layout blends on the GPU; at factor 1 it is state b.
     const Volume state_b = makeBricked(bigger, kFieldC);
     ASSERT_TRUE(gpu.value().replaceVolume(0, state_b, runtime::VolumeState::Secondary).ok());
-    gpu.value().setStateBlend(0, 1.0f);
+    ASSERT_TRUE(gpu.value().setStateBlend(0, 1.0f).ok());
     compareWithCpu(context(), gpu.value(), VolumeSet({state_b}), samplePoints({state_b}, 3000, 19),
                    kFloatRelative, 0.0f, "bricked_second_state");
 
@@ -1019,7 +1080,7 @@ TEST_F(GpuSampler, VisibilitySecondStateBlend) {
                 normals.push_back(s.normal);
             }
             for (float t : {0.0f, 0.3f, 1.0f}) {
-                gpu.value().setStateBlend(0, t);
+                ASSERT_TRUE(gpu.value().setStateBlend(0, t).ok());
                 Result<std::vector<glm::vec3>> e =
                     sampler.value().irradiance(gpu.value(), positions, normals);
                 ASSERT_TRUE(e.ok()) << e.error().message;
@@ -1103,7 +1164,7 @@ TEST_F(GpuSampler, ReplaceVolumeSwitchesVisibility) {
     Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), std::vector<Volume>{a});
     ASSERT_TRUE(gpu.ok());
     ASSERT_TRUE(gpu.value().replaceVolume(0, second, runtime::VolumeState::Secondary).ok());
-    gpu.value().setStateBlend(0, 1.0f);
+    ASSERT_TRUE(gpu.value().setStateBlend(0, 1.0f).ok());
     const Volume visible_a = withVisibility(a, 75);
     ASSERT_TRUE(gpu.value().replaceVolume(0, visible_a).ok());
     Volume second_weighted = second;

@@ -601,9 +601,9 @@ TEST_F(Renderer, DynamicUpdatesShowInTheNextFrameOnly) {
 
     Result<Frame> before = renderer().render(gpu.value(), settings);
     ASSERT_TRUE(gpu.value().replaceVolume(0, other, runtime::VolumeState::Secondary).ok());
-    gpu.value().setStateBlend(0, 1.0f);
+    ASSERT_TRUE(gpu.value().setStateBlend(0, 1.0f).ok());
     Result<Frame> after = renderer().render(gpu.value(), settings);
-    gpu.value().setStateBlend(0, 0.0f);
+    ASSERT_TRUE(gpu.value().setStateBlend(0, 0.0f).ok());
     Result<Frame> back = renderer().render(gpu.value(), settings);
     ASSERT_TRUE(before.ok() && after.ok() && back.ok());
     const VolumeSet cpu_after({other});

@@ -508,5 +508,37 @@ TEST(BrickStitch, GloballyTrilinearFieldIsUnchanged) {
     EXPECT_LE(stitchChangeOfGlobalTrilinearField(nestedLayout()), kTrilinearTolerance);
 }
 
+// stitchBorders checks its sizes, levels and indirection entries in every build type
+// (brick.hpp, ARCHITECTURE.md "Preconditions"): each of these would index past a span.
+TEST(BrickStitchDeathTest, ChecksItsPreconditions) {
+    const BrickLayout layout = mixedLayout();
+    const std::vector<uint32_t> indirection = mustBuild(kMixedTop, layout);
+    const std::vector<sh::ShRgb> probes = randomProbes(layout.bricks.size(), 0x5EED);
+    std::vector<sh::ShRgb> copy = probes;
+    const std::span<const uint32_t> short_indirection(indirection.data(), indirection.size() - 1);
+    EXPECT_DEATH(stitchBorders(kMixedTop, layout, short_indirection, copy),
+                 "precondition failed in stitchBorders: indirection.size\\(\\) ==");
+    std::span<sh::ShRgb> short_probes(copy.data(), copy.size() - 1);
+    EXPECT_DEATH(stitchBorders(kMixedTop, layout, indirection, short_probes),
+                 "precondition failed in stitchBorders: probes.size\\(\\) ==");
+    const std::vector<uint8_t> short_visibility(probes.size() * visibility::kBytesPerProbe - 1);
+    EXPECT_DEATH(stitchBorders(kMixedTop, layout, indirection, copy, short_visibility),
+                 "precondition failed in stitchBorders: visibility.empty\\(\\) \\|\\|");
+    std::vector<uint32_t> stray = indirection;
+    stray[0] = uint32_t(layout.bricks.size());
+    EXPECT_DEATH(stitchBorders(kMixedTop, layout, stray, copy),
+                 "precondition failed in stitchBorders: indirection_names_listed_bricks");
+    BrickLayout too_deep = layout;
+    too_deep.bricks[0].level = uint8_t(layout.maxLevel + 1);
+    EXPECT_DEATH(stitchBorders(kMixedTop, too_deep, indirection, copy),
+                 "precondition failed in stitchBorders: levels_within_max_level");
+    BrickLayout past_max = layout;
+    past_max.maxLevel = kMaxLevel + 1;
+    EXPECT_DEATH(stitchBorders(kMixedTop, past_max, indirection, copy),
+                 "precondition failed in stitchBorders: layout.maxLevel <= kMaxLevel");
+    // The valid call still runs.
+    stitchBorders(kMixedTop, layout, indirection, copy);
+}
+
 } // namespace
 } // namespace probekit::brick

@@ -139,16 +139,16 @@ TEST(GridLayout, MakeRejectsBadFrame) {
         ErrorCode::NonFinite);
 }
 
-// The asserted preconditions of the unchecked constructor (grid.hpp) fire in builds with
-// assertions (the Debug + sanitizer job of .ci/run); Release builds compile them out, which is
-// why untrusted values go through GridLayout::make.
-#ifndef NDEBUG
-TEST(GridLayoutDeathTest, UncheckedConstructorAssertsItsPreconditions) {
+// The constructor's preconditions (grid.hpp) are checked in every build type, Release included
+// (ARCHITECTURE.md, "Preconditions"): a violation prints the failed validation with its message
+// and aborts. Untrusted values go through GridLayout::make, which returns the error instead.
+TEST(GridLayoutDeathTest, ConstructorChecksItsPreconditions) {
     const grid::Aabb box{glm::vec3(0.0f), glm::vec3(1.0f)};
     EXPECT_DEATH(grid::GridLayout(box, glm::uvec3(3, 4, 4), grid::PositionMode::Center),
-                 "validateResolution");
-    EXPECT_DEATH(grid::GridLayout({glm::vec3(1.0f), glm::vec3(0.0f)}, glm::uvec3(4),
-                                  grid::PositionMode::Center),
-                 "validateBounds");
+                 "precondition failed in GridLayout: validateResolution.*resolution.x = 3 is not a "
+                 "power of two");
+    EXPECT_DEATH(
+        grid::GridLayout({glm::vec3(1.0f), glm::vec3(0.0f)}, glm::uvec3(4),
+                         grid::PositionMode::Center),
+        "precondition failed in GridLayout: validateBounds.*bounds.x is empty or inverted");
 }
-#endif

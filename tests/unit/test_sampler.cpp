@@ -593,6 +593,39 @@ TEST(VolumeSetLoad, ErrorsPassThroughTheFileMessage) {
     std::filesystem::remove(garbage);
 }
 
+// VolumeSet's precondition, every volume passing validateVolume, is checked in every build type
+// (sampler.hpp, ARCHITECTURE.md "Preconditions"): make() returns the error naming the volume,
+// the constructor aborts with it, and sampling an empty set aborts rather than reading a
+// volume that is not there.
+TEST(VolumeSetMake, RejectsAnInvalidVolumeNamingIt) {
+    VolumeSpec spec;
+    spec.name = "truncated";
+    const Volume good = makeTestVolume(VolumeSpec{}, constantField(glm::vec3(1.0f)));
+    Volume bad = makeTestVolume(spec, constantField(glm::vec3(1.0f)));
+    bad.texelsF32.pop_back();
+    Result<VolumeSet> set = VolumeSet::make({good, bad});
+    ASSERT_FALSE(set.ok());
+    EXPECT_EQ(set.error().code, ErrorCode::InconsistentSize);
+    EXPECT_EQ(set.error().message.rfind("volumes[1]: volume 'truncated': texel data holds", 0), 0u)
+        << set.error().message;
+    Result<VolumeSet> valid = VolumeSet::make({good});
+    ASSERT_TRUE(valid.ok()) << valid.error().message;
+    EXPECT_EQ(valid.value().irradiance(glm::vec3(0.5f), glm::vec3(0.0f, 1.0f, 0.0f)),
+              VolumeSet({good}).irradiance(glm::vec3(0.5f), glm::vec3(0.0f, 1.0f, 0.0f)));
+}
+
+TEST(VolumeSetDeathTest, ChecksItsPreconditions) {
+    VolumeSpec spec;
+    spec.name = "truncated";
+    Volume bad = makeTestVolume(spec, constantField(glm::vec3(1.0f)));
+    bad.validity.pop_back();
+    EXPECT_DEATH(VolumeSet({bad}), "precondition failed in VolumeSet: validateVolume.*volume "
+                                   "'truncated': 7 validity bytes for 8 probes");
+    const VolumeSet empty;
+    EXPECT_DEATH(empty.irradiance(glm::vec3(0.0f), glm::vec3(0.0f, 1.0f, 0.0f)),
+                 "precondition failed in irradiance: !empty");
+}
+
 // ---- Bricked volumes (steps B1-B4 of sampler.hpp) ----
 
 namespace {

@@ -121,6 +121,11 @@ sh::ShRgb interpolate(std::span<const sh::ShRgb> brick_probes, glm::vec3 local,
 // visibility-weighted one, so a stitched probe takes exactly what the coarser side shows at its
 // point; between stitched probes the two sides then agree up to the field's variation within a
 // finer cell, no longer exactly (visibility-weighted interpolation is not piecewise trilinear).
+// Preconditions (checked in every build type; a failure prints the condition and aborts,
+// ARCHITECTURE.md "Preconditions"): maxLevel <= kMaxLevel and every brick's level <= maxLevel;
+// `indirection` has one entry per finest cell, each the index of a listed brick (what
+// buildIndirection returns); `probes` holds 64 per brick; `visibility` is empty or
+// visibility::kBytesPerProbe per probe.
 void stitchBorders(glm::uvec3 top_bricks, const BrickLayout& layout,
                    std::span<const uint32_t> indirection, std::span<sh::ShRgb> probes,
                    std::span<const uint8_t> visibility = {});

@@ -67,8 +67,9 @@ Result<void> validateBounds(const Aabb& bounds);
 class GridLayout {
 public:
     GridLayout() = default;
-    // Preconditions (asserted): validateResolution and validateBounds pass. Use make() for
-    // untrusted values.
+    // Preconditions (checked in every build type; a failure prints the validation message and
+    // aborts, ARCHITECTURE.md "Preconditions"): validateResolution and validateBounds pass. Use
+    // make() for untrusted values.
     GridLayout(Aabb bounds, glm::uvec3 resolution, PositionMode mode, RigidFrame frame = {});
 
     // Validating constructor for untrusted input.
@@ -104,6 +105,10 @@ public:
     glm::vec3 gridToWorld(glm::vec3 grid) const { return m_frame.toWorld(gridToLocal(grid)); }
 
 private:
+    // What make() uses once it has validated the arguments: no second check.
+    struct Checked {};
+    GridLayout(Aabb bounds, glm::uvec3 resolution, PositionMode mode, RigidFrame frame, Checked);
+
     Aabb m_bounds;
     glm::uvec3 m_resolution{1u};
     PositionMode m_mode = PositionMode::Center;

@@ -3,7 +3,7 @@
 // Libraries never throw across their public boundary and never print. A function that can fail
 // on input it does not control (a file, a glTF, a Vulkan call) returns Result<T>: either a value
 // or an Error whose message names the file and field at fault. Programmer errors (preconditions
-// a caller can check) are asserted at function entry instead.
+// a caller can check) are checked at function entry instead (ARCHITECTURE.md, "Preconditions").
 #pragma once
 
 #include <cassert>

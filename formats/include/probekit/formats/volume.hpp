@@ -116,9 +116,13 @@ struct Volume {
     size_t visibilityGpuBytes() const { return hasVisibility() ? probeCount() * 8 : 0; }
     size_t validCount() const;
 
-    // Texel of one plane at one probe, converted to float.
+    // Texel of one plane at one probe, converted to float. Preconditions (asserted, so not
+    // checked in Release builds): plane < planes(), probe < probeCount(), and the texel arrays
+    // hold what validateVolume requires. The CPU sampler calls this for every plane of every
+    // tap, where an always-on check costs measurable time (ARCHITECTURE.md, "Preconditions");
+    // a Volume from makeVolume or readPvol, indexed within probeCount(), meets them.
     glm::vec4 texel(uint32_t plane, size_t probe) const;
-    // Unpacks one probe's coefficients (band 2 zero for L1).
+    // Unpacks one probe's coefficients (band 2 zero for L1). Preconditions as texel's.
     sh::ShRgb probe(size_t probe) const;
 };
 

@@ -100,9 +100,10 @@ glm::uvec3 brickAtlasSlot(uint32_t index, glm::uvec3 atlas_slots);
 gpu::PkVolumeGpu packVolumeGpu(const VolumeDesc& desc, float blend,
                                glm::uvec3 atlas_slots = glm::uvec3(0u), bool visibility = false);
 
-// The whole uniform buffer. Preconditions: 1 <= descs.size() <= kMaxGpuVolumes, blends has one
-// entry per volume, atlas_slots one per volume or (no bricked volumes) none, visibility one
-// per volume (nonzero: the volume has visibility) or (none has) none.
+// The whole uniform buffer. Preconditions (checked in every build type; a failure prints the
+// condition and aborts, ARCHITECTURE.md "Preconditions"): 1 <= descs.size() <= kMaxGpuVolumes,
+// blends has one entry per volume, atlas_slots one per volume or (no bricked volumes) none,
+// visibility one per volume (nonzero: the volume has visibility) or (none has) none.
 gpu::PkVolumeSetGpu packVolumeSetGpu(std::span<const VolumeDesc> descs,
                                      std::span<const float> blends, float normal_offset,
                                      std::span<const glm::uvec3> atlas_slots = {},
@@ -113,8 +114,9 @@ gpu::PkVolumeSetGpu packVolumeSetGpu(std::span<const VolumeDesc> descs,
 // (and the same memory as RGBA16_UINT (q0 | q1 << 8, q2 | q3 << 8, q4 | q5 << 8, 0)).
 constexpr size_t kVisibilityTexelBytes = 8;
 // The visibility texels of the probes [first, first + count) of a dense volume with
-// visibility, z, y, x (x fastest). Preconditions as packTexelBox; `out` holds
-// visibilityBoxBytes(count) bytes.
+// visibility, z, y, x (x fastest). Preconditions (checked as packTexelBox's): the box's, the
+// volume's visibility is kBytesPerProbe per probe, and `out` holds visibilityBoxBytes(count)
+// bytes.
 size_t visibilityBoxBytes(glm::uvec3 count);
 void packVisibilityBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count,
                        std::span<uint8_t> out);
@@ -124,8 +126,10 @@ glm::uvec3 brickedIntegerExtent(glm::uvec3 cells, glm::uvec3 atlas_slots);
 
 // The texels of the probes [first, first + count) of every plane, in staging order: plane by
 // plane, then z, y, x (x fastest), in the volume's storage format (raw float or half bits).
-// Dense volumes only. Preconditions: count >= 1 per axis and first + count <= resolution; `out`
-// holds texelBoxBytes(volume, count) bytes.
+// Dense volumes only. Preconditions (checked in every build type; a failure prints the
+// condition and aborts, ARCHITECTURE.md "Preconditions"): the volume is dense and holds
+// planes * probes * 4 texel components, count >= 1 per axis and first + count <= resolution,
+// and `out` holds texelBoxBytes(volume, count) bytes.
 size_t texelBoxBytes(const Volume& volume, glm::uvec3 count);
 void packTexelBox(const Volume& volume, glm::uvec3 first, glm::uvec3 count, std::span<uint8_t> out);
 
@@ -145,8 +149,11 @@ public:
     ~GpuVolumeSet();
 
     size_t size() const;
-    // The volume as the GPU sees it (after setFrame and replaceVolume). Index = slot = position
-    // in the `volumes` given to create.
+    // Index = slot = position in the `volumes` given to create. The accessors below check
+    // index < size() in every build type (a failure prints the condition and aborts,
+    // ARCHITECTURE.md "Preconditions"); the update calls (replaceVolume, updateBox, setFrame,
+    // setStateBlend) fail with OutOfRange instead.
+    // The volume as the GPU sees it (after setFrame and replaceVolume).
     const VolumeDesc& desc(size_t index) const;
     // Validity bytes of the primary state (one per probe).
     const std::vector<uint8_t>& validity(size_t index) const;
@@ -199,9 +206,10 @@ public:
     // non-unit or non-finite rotation or translation.
     Result<void> setFrame(size_t index, const grid::RigidFrame& frame);
 
-    // Mix factor towards the second state, clamped to [0, 1]. Precondition: hasSecondState, or
-    // blend == 0.
-    void setStateBlend(size_t index, float blend);
+    // Mix factor towards the second state, clamped to [0, 1] (NaN counts as 0). Fails with
+    // InvalidArgument, changing nothing, when the clamped factor is not 0 and the volume has no
+    // second state.
+    Result<void> setStateBlend(size_t index, float blend);
 
     // Metres along the receiver normal that pk_irradiance moves its sample point (against
     // self-leaking; VolumeSet::irradiance's normal_offset). 0 reproduces the CPU sampler.

@@ -28,7 +28,8 @@ public:
     // Irradiance E (W/m^2, not divided by pi) at each world position (m) for the unit world
     // normal of the same index: the GPU twin of
     // VolumeSet::irradiance(position, normal, volumes.normalOffset()). Records the set's
-    // pending uniform update, dispatches, waits and reads back. Precondition: equal sizes.
+    // pending uniform update, dispatches, waits and reads back. Fails with InvalidArgument
+    // when positions and normals differ in count.
     Result<std::vector<glm::vec3>> irradiance(GpuVolumeSet& volumes,
                                               std::span<const glm::vec3> positions,
                                               std::span<const glm::vec3> normals);

@@ -77,15 +77,21 @@ float distanceToVolume(const Volume& volume, glm::vec3 world_position);
 class VolumeSet {
 public:
     VolumeSet() = default;
+    // Precondition (checked in every build type; a failure prints validateVolume's message and
+    // aborts, ARCHITECTURE.md "Preconditions"): every volume passes validateVolume. Use make()
+    // for volumes that may not.
     explicit VolumeSet(std::vector<Volume> volumes);
 
+    // Validating constructor: fails with validateVolume's error, prefixed "volumes[i]: ".
+    static Result<VolumeSet> make(std::vector<Volume> volumes);
     static Result<VolumeSet> load(const std::filesystem::path& path);
 
     const std::vector<Volume>& volumes() const { return m_volumes; }
     bool empty() const { return m_volumes.empty(); }
 
     // Irradiance E in W/m^2 (not divided by pi) for a receiver at world position p with unit
-    // world normal n, blended over all volumes as described above. Precondition: !empty().
+    // world normal n, blended over all volumes as described above. Precondition (checked in
+    // every build type, aborting): !empty().
     glm::vec3 irradiance(glm::vec3 world_position, glm::vec3 normal) const;
 
     // The same at the sample point p + normal_offset * n (metres along the normal; n is still
@@ -95,6 +101,10 @@ public:
     glm::vec3 irradiance(glm::vec3 world_position, glm::vec3 normal, float normal_offset) const;
 
 private:
+    // What make() and load() use once every volume has been validated: no second pass.
+    struct Validated {};
+    VolumeSet(std::vector<Volume> volumes, Validated);
+
     std::vector<Volume> m_volumes;
     std::vector<size_t> m_byPriority; // indices into m_volumes, descending priority
 };
