@@ -19,6 +19,34 @@
 //              (1, 0.95, 0.85), 50 degrees up, shining from +z turned 30 degrees towards +x.
 //              No sky: environments are bake settings (examples/courtyard-bake.json).
 //   courtyard-overcast  The courtyard without its sun: lit by the bake's sky alone.
+//
+// Scenes like the third-party assets users bring, which nobody tuned the baker for. Their
+// units are what modelling tools write, not metres: read as metres (formats/CONVENTIONS.md)
+// they are 100x or 1000x too big, as such files are.
+//   critter-cm  A spider-like creature modelled in centimetres on a 500 x 500 unit ground
+//              square (y = 0): body and abdomen ellipsoids 62 units long (x -46..16, 32
+//              segments x 16 rings each) with a base-colour texture, an external PNG beside
+//              the .gltf (NAME-stripes.png, 64 x 64: stripes of 8 texel rows from the top,
+//              alternating sRGB (214, 140, 60) and (70, 40, 25)), two eyes, and eight legs of
+//              two 1-unit-thick cylinders each reaching 60 units to the side and 55 up (2,930
+//              triangles). One sun as glTF exporters write a 3 W/m^2 sun, 2,049 lux, 40
+//              degrees up; no sky.
+//   text-floor  A 6 m x 6 m floor (metres) with "PROBEKIT" in a 5 x 7 pixel font standing
+//              on a 2 cm plate: 4 cm strokes, letters 2.5 cm thick and 28 cm high, each row's
+//              run of pixels one box; three 2 cm floor tiles in front (986 triangles). Lit by
+//              an 8 W/sr point light and a 60 W/sr spot (cones 15 and 25 degrees) aimed at
+//              the text, both on its -z side.
+//   lone-box    One closed 1 m cube (metres, centred on the origin), every face carrying the
+//              whole texture NAME-checker.png (64 x 64: 8 x 8 squares, sRGB (235, 235, 230)
+//              where column + row is even, (40, 80, 160) where odd), in open space: nothing
+//              else, no ground. A 3 W/m^2 sun 50 degrees up; no sky in the file: bake with a
+//              sky from the config or --env (e.g. --env 0.3,0.4,0.6,
+//              examples/courtyard-bake.json's).
+//   engine-mm   A dense engine-like mechanism in millimetres on a 2,400-unit floor square:
+//              block, head and cover on four mounts, 80 cooling fins 3 units thick, 108 bolts,
+//              intake and exhaust runners, pulleys, a flywheel and a harness of 200 wire
+//              segments 6 units thick (32,568 triangles); lit only by a 400 x 400 unit
+//              emissive panel 1,500 units up, radiance (8, 7.6, 7) W/(sr m^2).
 #pragma once
 
 #include <filesystem>
@@ -32,8 +60,9 @@ namespace probekit::baker {
 // Names accepted by writeGeneratedScene, in a stable order.
 std::vector<std::string> generatedSceneNames();
 
-// Writes scene `name` to `path` (.gltf) plus `path` with extension .bin. Errors name the
-// scene or file.
+// Writes scene `name` to `path` (.gltf) plus `path` with extension .bin and, for textured
+// scenes, the PNGs beside it (STEM-NAME.png). Deterministic: the same bytes on every run.
+// Errors name the scene or file.
 Result<void> writeGeneratedScene(const std::string& name, const std::filesystem::path& path);
 
 } // namespace probekit::baker
