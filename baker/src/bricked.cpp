@@ -99,6 +99,7 @@ public:
     bool nudged(uint64_t key) const { return m_nudged[m_index.at(key)] != 0; }
     std::vector<sh::ShRgb>& allSh() { return m_sh; }
     std::vector<uint8_t>& allValid() { return m_valid; }
+    size_t size() const { return m_valid.size(); }
     const std::unordered_map<uint64_t, uint32_t>& indexMap() const { return m_index; }
 
 private:
@@ -658,11 +659,17 @@ struct Candidates {
 };
 
 // Picks the frontier's bricks whose prediction (or direct-light disagreement) exceeds
-// `threshold` and that have a probe outside geometry, and bakes their finer probes.
+// `threshold` and that have a probe outside geometry, and bakes their finer probes. When their
+// probes would not fit in the working memory, the bricks with the largest disagreement are
+// kept and the rest go untested (counted in memoryUntested).
 Candidates chooseCandidates(BrickedBake& b, DirectField& direct, const std::vector<int>& frontier,
                             float threshold) {
-    Candidates out;
-    std::vector<glm::uvec3> wanted;
+    struct Eligible {
+        int node;
+        float priority;
+        Disagreement direct;
+    };
+    std::vector<Eligible> eligible;
     for (int i : frontier) {
         Node& n = b.nodes[size_t(i)];
         const auto own = regionPoints(n.brick, b.maxLevel, 1);
@@ -673,12 +680,33 @@ Candidates chooseCandidates(BrickedBake& b, DirectField& direct, const std::vect
         const Disagreement from_direct = direct.disagreement(n.brick, b.maxLevel, b.scale);
         const float most_direct =
             *std::max_element(std::begin(from_direct.octant), std::end(from_direct.octant));
-        if (std::max(n.predicted, most_direct) <= threshold) {
+        const float priority = std::max(n.predicted, most_direct);
+        if (priority <= threshold) {
             continue;
         }
-        out.nodes.push_back(i);
-        out.direct.push_back(from_direct);
-        const auto finer = regionPoints(n.brick, b.maxLevel, 2);
+        eligible.push_back({i, priority, from_direct});
+    }
+    // Every candidate adds at most this many probes (neighbours share some).
+    const uint64_t side = 2 * kBrickCells + 1;
+    const uint64_t per_brick = side * side * side;
+    const uint64_t room = b.settings.workingBytes / kBakedProbeBytes;
+    const uint64_t held = b.lattice.size();
+    const uint64_t fit = room > held ? (room - held) / per_brick : 0;
+    if (eligible.size() > fit) {
+        std::stable_sort(
+            eligible.begin(), eligible.end(),
+            [](const Eligible& x, const Eligible& y) { return x.priority > y.priority; });
+        b.out.memoryUntested += eligible.size() - fit;
+        eligible.resize(size_t(fit));
+        std::sort(eligible.begin(), eligible.end(),
+                  [](const Eligible& x, const Eligible& y) { return x.node < y.node; });
+    }
+    Candidates out;
+    std::vector<glm::uvec3> wanted;
+    for (const Eligible& e : eligible) {
+        out.nodes.push_back(e.node);
+        out.direct.push_back(e.direct);
+        const auto finer = regionPoints(b.nodes[size_t(e.node)].brick, b.maxLevel, 2);
         wanted.insert(wanted.end(), finer.begin(), finer.end());
     }
     b.lattice.ensure(wanted);
@@ -942,6 +970,14 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
     measureNoise(b, level_zero);
     predictLevelZero(b);
     refine(b);
+    if (b.out.memoryUntested > 0) {
+        b.out.warnings.push_back(
+            "volume '" + desc.name + "': " + std::to_string(b.out.memoryUntested) +
+            " candidate bricks were not refined: their probes would not fit in max_memory_mb = " +
+            std::to_string(settings.workingBytes >> 20) + " (about " +
+            std::to_string(kBakedProbeBytes) +
+            " bytes per baked probe); the bricks that disagreed most were refined first");
+    }
     const Result<uint32_t> used_level = applyBudget(b);
     if (!used_level) {
         return used_level.error();
