@@ -20,7 +20,9 @@
 #include <glm/geometric.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
+#include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
+#include <glm/matrix.hpp>
 #include <tiny_gltf.h>
 
 #include "probekit/baker/scene.hpp"
@@ -173,6 +175,14 @@ double readComponent(const uint8_t* p, int component_type, bool normalized) {
 
 bool isFinite(glm::dvec3 v) {
     return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+// A glTF NORMAL (three floats) in world space, unit length; zero when it is not finite or
+// vanishes (the renderer then falls back to the face normal).
+glm::vec3 worldNormal(const glm::dmat3& normal_matrix, const float* n) {
+    const glm::dvec3 w = normal_matrix * glm::dvec3(n[0], n[1], n[2]);
+    const double length = glm::length(w);
+    return isFinite(w) && length > 0.0 ? glm::vec3(w / length) : glm::vec3(0.0f);
 }
 
 struct BoundsBuilder {
@@ -818,6 +828,22 @@ private:
             }
         }
 
+        // Vertex normals (the renderer's smooth shading; light transport uses face normals).
+        std::vector<float> normals;
+        if (const auto normal_it = primitive.attributes.find("NORMAL");
+            normal_it != primitive.attributes.end()) {
+            normals = readAccessor<float>(normal_it->second, TINYGLTF_TYPE_VEC3, false,
+                                          field + " NORMAL");
+            if (normals.size() / 3 != vertex_count) {
+                fail(ErrorCode::InconsistentSize,
+                     field + ": NORMAL (accessor " + std::to_string(normal_it->second) + ") has " +
+                         std::to_string(normals.size() / 3) + " elements, POSITION has " +
+                         std::to_string(vertex_count));
+            }
+        }
+        // Normals transform by the inverse transpose of the node's matrix.
+        const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(glm::dmat3(world)));
+
         std::vector<uint32_t> indices;
         if (primitive.indices >= 0) {
             indices = readAccessor<uint32_t>(primitive.indices, TINYGLTF_TYPE_SCALAR, true,
@@ -896,6 +922,9 @@ private:
                     m_scene.positions.push_back(world_positions[v]);
                     m_scene.uvs.push_back(uvs.empty() ? glm::vec2(0.0f)
                                                       : glm::vec2(uvs[2 * v], uvs[2 * v + 1]));
+                    m_scene.normals.push_back(
+                        normals.empty() ? glm::vec3(0.0f)
+                                        : worldNormal(normal_matrix, normals.data() + 3 * v));
                     local_bounds.add(
                         glm::vec3(positions[3 * v], positions[3 * v + 1], positions[3 * v + 2]));
                     world_bounds.add(world_positions[v]);
