@@ -776,6 +776,26 @@ private:
 
     // ---- primitives ----
 
+    // A float vertex attribute of `components` per vertex, empty when the primitive has none;
+    // its count must match POSITION's.
+    std::vector<float> vertexAttribute(const tinygltf::Primitive& primitive, const char* name,
+                                       int type, size_t components, size_t vertex_count,
+                                       const std::string& field) const {
+        const auto it = primitive.attributes.find(name);
+        if (it == primitive.attributes.end()) {
+            return {};
+        }
+        std::vector<float> values =
+            readAccessor<float>(it->second, type, false, field + " " + name);
+        if (values.size() / components != vertex_count) {
+            fail(ErrorCode::InconsistentSize,
+                 field + ": " + name + " (accessor " + std::to_string(it->second) + ") has " +
+                     std::to_string(values.size() / components) + " elements, POSITION has " +
+                     std::to_string(vertex_count));
+        }
+        return values;
+    }
+
     void loadPrimitive(int mesh_index, int primitive_index, const glm::dmat4& world,
                        int32_t scene_node, BoundsBuilder& local_bounds,
                        BoundsBuilder& world_bounds) {
@@ -815,32 +835,11 @@ private:
         const std::vector<float> positions = readAccessor<float>(
             position_it->second, TINYGLTF_TYPE_VEC3, false, field + " POSITION");
         const size_t vertex_count = positions.size() / 3;
-        std::vector<float> uvs;
-        if (const auto uv_it = primitive.attributes.find("TEXCOORD_0");
-            uv_it != primitive.attributes.end()) {
-            uvs = readAccessor<float>(uv_it->second, TINYGLTF_TYPE_VEC2, false,
-                                      field + " TEXCOORD_0");
-            if (uvs.size() / 2 != vertex_count) {
-                fail(ErrorCode::InconsistentSize,
-                     field + ": TEXCOORD_0 (accessor " + std::to_string(uv_it->second) + ") has " +
-                         std::to_string(uvs.size() / 2) + " elements, POSITION has " +
-                         std::to_string(vertex_count));
-            }
-        }
-
+        const std::vector<float> uvs =
+            vertexAttribute(primitive, "TEXCOORD_0", TINYGLTF_TYPE_VEC2, 2, vertex_count, field);
         // Vertex normals (the renderer's smooth shading; light transport uses face normals).
-        std::vector<float> normals;
-        if (const auto normal_it = primitive.attributes.find("NORMAL");
-            normal_it != primitive.attributes.end()) {
-            normals = readAccessor<float>(normal_it->second, TINYGLTF_TYPE_VEC3, false,
-                                          field + " NORMAL");
-            if (normals.size() / 3 != vertex_count) {
-                fail(ErrorCode::InconsistentSize,
-                     field + ": NORMAL (accessor " + std::to_string(normal_it->second) + ") has " +
-                         std::to_string(normals.size() / 3) + " elements, POSITION has " +
-                         std::to_string(vertex_count));
-            }
-        }
+        const std::vector<float> normals =
+            vertexAttribute(primitive, "NORMAL", TINYGLTF_TYPE_VEC3, 3, vertex_count, field);
         // Normals transform by the inverse transpose of the node's matrix.
         const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(glm::dmat3(world)));
 
