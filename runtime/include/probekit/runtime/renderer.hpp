@@ -103,17 +103,17 @@ uint32_t probeBudget(uint32_t width, uint32_t height);
 enum class RenderView : uint32_t {
     Shaded = 0,     // albedo / pi x (E + direct light when asked) + emission
     Irradiance = 1, // E itself
-    Probes = 2, // Shaded, plus probes (probeBudget) as spheres lit by their own SH (white albedo);
-                // bricked volumes' probes are flat spheres coloured by their brick's
-                // level: 0 blue, 1 green, 2 yellow, 3 magenta (radius 0.15 x that
-                // brick's probe spacing), so the adaptive refinement shows
-    Validity = 3, // probe spheres only (none hidden by walls; probeBudget): valid ones lit by their
-                  // SH, invalid ones flat red
-    Leak = 4, // the visible share v of the trilinear weight (runtime::visibleWeight,
-              // blended over volumes as irradiance is: pk_visible_weight) as the ramp
-              // rgb = (1, v, v): white where no interpolation tap is hidden (v = 1, also
-              // everywhere for volumes without visibility), red where every tap is
-              // (v = 0, plain trilinear interpolation would leak light through a wall)
+    Probes = 2,     // Shaded, plus probes (probeBudget) as spheres lit by their own SH
+                    // (white albedo); bricked volumes' probes are flat spheres coloured by
+                    // their brick's level: 0 blue, 1 green, 2 yellow, 3 magenta (radius 0.15 x
+                    // that brick's probe spacing), so the adaptive refinement shows
+    Validity = 3,   // probe spheres only (none hidden by walls; probeBudget): valid ones lit
+                    // by their SH, invalid ones flat red
+    Leak = 4,       // the visible share v of the trilinear weight (runtime::visibleWeight,
+                    // blended over volumes as irradiance is: pk_visible_weight) as the ramp
+                    // rgb = (1, v, v): white where no interpolation tap is hidden (v = 1, also
+                    // everywhere for volumes without visibility), red where every tap is
+                    // (v = 0, plain trilinear interpolation would leak light through a wall)
 };
 
 constexpr size_t kMaxRenderLights = 8;
