@@ -16,6 +16,7 @@ layout(location = 1) out vec3 out_normal;
 layout(location = 2) out vec3 out_albedo;
 layout(location = 3) out vec3 out_emission;
 layout(location = 4) flat out uint out_id;
+layout(location = 5) out vec2 out_uv; // the white texture: albedo 1
 
 void main() {
     const vec3 position = in_center_radius.xyz + in_center_radius.w * in_direction;
@@ -24,5 +25,6 @@ void main() {
     out_albedo = vec3(1.0);
     out_emission = vec3(0.0);
     out_id = in_id;
+    out_uv = vec2(0.5);
     gl_Position = pk_frame.viewProjection * vec4(position, 1.0);
 }

@@ -30,6 +30,14 @@ using uvec4 = glm::uvec4;
 #define PK_VIEW_VALIDITY 3u   // probe spheres only: valid ones lit by their SH, invalid ones red
 #define PK_VIEW_LEAK 4u       // visible share v of the trilinear weight: rgb (1, v, v)
 
+// PkFrameGpu.environmentInfo.x: what the background pass draws where no geometry is.
+#define PK_ENV_NONE 0u     // nothing (the G-buffer stays cleared: black)
+#define PK_ENV_CONSTANT 1u // PkFrameGpu.environment.rgb
+#define PK_ENV_LATLONG 2u  // the lat-long image times PkFrameGpu.environment.rgb (the intensity)
+
+// Largest binary16 value: the G-buffer's emission target holds the background radiance.
+#define PK_HALF_MAX 65504.0
+
 // PkLightGpu.info.x.
 #define PK_LIGHT_POINT 0u
 #define PK_LIGHT_SPOT 1u
@@ -56,6 +64,14 @@ struct PkFrameGpu {
                                         //   z = add direct light (0/1), w = 0
     uvec4 size;                         // bytes 96..111: x = width, y = height (pixels)
     PkLightGpu lights[PK_MAX_LIGHTS];   // bytes 112..623
+    // The camera's basis scaled to the image plane at distance 1 (runtime::pixelDirection):
+    vec4 cameraRight;                   // bytes 624..639: xyz right x tan(fov / 2) x aspect
+    vec4 cameraUp;                      // bytes 640..655: xyz up x tan(fov / 2)
+    vec4 cameraForward;                 // bytes 656..671: xyz unit view direction
+    vec4 environment;                   // bytes 672..687: rgb constant radiance x intensity
+                                        //   (constant) or the intensity (lat-long), W/(sr m^2);
+                                        //   w = rotation about +Y, radians
+    uvec4 environmentInfo;              // bytes 688..703: x = PK_ENV_*; yzw zero
 };
 
 #ifdef __cplusplus
@@ -70,7 +86,12 @@ static_assert(offsetof(PkFrameGpu, eye) == 64);
 static_assert(offsetof(PkFrameGpu, info) == 80);
 static_assert(offsetof(PkFrameGpu, size) == 96);
 static_assert(offsetof(PkFrameGpu, lights) == 112);
-static_assert(sizeof(PkFrameGpu) == 112 + 64 * PK_MAX_LIGHTS);
+static_assert(offsetof(PkFrameGpu, cameraRight) == 624);
+static_assert(offsetof(PkFrameGpu, cameraUp) == 640);
+static_assert(offsetof(PkFrameGpu, cameraForward) == 656);
+static_assert(offsetof(PkFrameGpu, environment) == 672);
+static_assert(offsetof(PkFrameGpu, environmentInfo) == 688);
+static_assert(sizeof(PkFrameGpu) == 112 + 64 * PK_MAX_LIGHTS + 80);
 } // namespace probekit::gpu
 #endif
 

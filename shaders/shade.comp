@@ -68,7 +68,9 @@ void main() {
     const uint id = imageLoad(g_id, px).x;
     const uint kind = id & 3u;
     if (kind == PK_KIND_NONE) {
-        imageStore(out_color, px, vec4(0.0));
+        // The background: what the G-buffer's background pass left in the emission target (the
+        // environment's radiance in the shaded and probes views, else the cleared 0), alpha 0.
+        imageStore(out_color, px, vec4(imageLoad(g_emission, px).rgb, 0.0));
         return;
     }
     const vec3 position = imageLoad(g_position, px).xyz;

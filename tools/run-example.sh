@@ -11,4 +11,4 @@ mkdir -p out
     --report out/cornell-report.json
 "$pk" info out/cornell.pvol
 "$pk" sample out/cornell.pvol --points examples/cornell-points.csv
-"$pk" render out/cornell.gltf out/cornell.pvol -o out/cornell.png
+"$pk" render out/cornell.gltf out/cornell.pvol -o out/cornell.png --camera-from -z

@@ -20,7 +20,9 @@
 #include <glm/geometric.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
+#include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
+#include <glm/matrix.hpp>
 #include <tiny_gltf.h>
 
 #include "probekit/baker/scene.hpp"
@@ -173,6 +175,14 @@ double readComponent(const uint8_t* p, int component_type, bool normalized) {
 
 bool isFinite(glm::dvec3 v) {
     return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+// A glTF NORMAL (three floats) in world space, unit length; zero when it is not finite or
+// vanishes (the renderer then falls back to the face normal).
+glm::vec3 worldNormal(const glm::dmat3& normal_matrix, const float* n) {
+    const glm::dvec3 w = normal_matrix * glm::dvec3(n[0], n[1], n[2]);
+    const double length = glm::length(w);
+    return isFinite(w) && length > 0.0 ? glm::vec3(w / length) : glm::vec3(0.0f);
 }
 
 struct BoundsBuilder {
@@ -766,6 +776,26 @@ private:
 
     // ---- primitives ----
 
+    // A float vertex attribute of `components` per vertex, empty when the primitive has none;
+    // its count must match POSITION's.
+    std::vector<float> vertexAttribute(const tinygltf::Primitive& primitive, const char* name,
+                                       int type, size_t components, size_t vertex_count,
+                                       const std::string& field) const {
+        const auto it = primitive.attributes.find(name);
+        if (it == primitive.attributes.end()) {
+            return {};
+        }
+        std::vector<float> values =
+            readAccessor<float>(it->second, type, false, field + " " + name);
+        if (values.size() / components != vertex_count) {
+            fail(ErrorCode::InconsistentSize,
+                 field + ": " + name + " (accessor " + std::to_string(it->second) + ") has " +
+                     std::to_string(values.size() / components) + " elements, POSITION has " +
+                     std::to_string(vertex_count));
+        }
+        return values;
+    }
+
     void loadPrimitive(int mesh_index, int primitive_index, const glm::dmat4& world,
                        int32_t scene_node, BoundsBuilder& local_bounds,
                        BoundsBuilder& world_bounds) {
@@ -805,18 +835,13 @@ private:
         const std::vector<float> positions = readAccessor<float>(
             position_it->second, TINYGLTF_TYPE_VEC3, false, field + " POSITION");
         const size_t vertex_count = positions.size() / 3;
-        std::vector<float> uvs;
-        if (const auto uv_it = primitive.attributes.find("TEXCOORD_0");
-            uv_it != primitive.attributes.end()) {
-            uvs = readAccessor<float>(uv_it->second, TINYGLTF_TYPE_VEC2, false,
-                                      field + " TEXCOORD_0");
-            if (uvs.size() / 2 != vertex_count) {
-                fail(ErrorCode::InconsistentSize,
-                     field + ": TEXCOORD_0 (accessor " + std::to_string(uv_it->second) + ") has " +
-                         std::to_string(uvs.size() / 2) + " elements, POSITION has " +
-                         std::to_string(vertex_count));
-            }
-        }
+        const std::vector<float> uvs =
+            vertexAttribute(primitive, "TEXCOORD_0", TINYGLTF_TYPE_VEC2, 2, vertex_count, field);
+        // Vertex normals (the renderer's smooth shading; light transport uses face normals).
+        const std::vector<float> normals =
+            vertexAttribute(primitive, "NORMAL", TINYGLTF_TYPE_VEC3, 3, vertex_count, field);
+        // Normals transform by the inverse transpose of the node's matrix.
+        const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(glm::dmat3(world)));
 
         std::vector<uint32_t> indices;
         if (primitive.indices >= 0) {
@@ -896,6 +921,9 @@ private:
                     m_scene.positions.push_back(world_positions[v]);
                     m_scene.uvs.push_back(uvs.empty() ? glm::vec2(0.0f)
                                                       : glm::vec2(uvs[2 * v], uvs[2 * v + 1]));
+                    m_scene.normals.push_back(
+                        normals.empty() ? glm::vec3(0.0f)
+                                        : worldNormal(normal_matrix, normals.data() + 3 * v));
                     local_bounds.add(
                         glm::vec3(positions[3 * v], positions[3 * v + 1], positions[3 * v + 2]));
                     world_bounds.add(world_positions[v]);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cassert>
 #include <cmath>
 #include <cstring>
@@ -11,6 +12,7 @@
 #include <glm/ext/matrix_clip_space.hpp>
 #include <glm/ext/matrix_transform.hpp>
 #include <glm/geometric.hpp>
+#include <glm/gtc/packing.hpp>
 
 #include "render_layout.h"
 #include "vk_util.hpp"
@@ -30,6 +32,10 @@ constexpr VkFormat kEmissionFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
 constexpr VkFormat kIdFormat = VK_FORMAT_R32_UINT;
 constexpr VkFormat kDepthFormat = VK_FORMAT_D32_SFLOAT;
 constexpr VkFormat kColorFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
+// Base-colour textures and the lat-long environment: half precision (2^-11 relative, below what
+// an 8-bit texture or a preview needs) halves their memory, and linear filtering of it is
+// required of every device.
+constexpr VkFormat kTextureFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
 // G-buffer colour targets (position, normal, albedo, emission, id), then depth.
 constexpr uint32_t kColorTargets = 5;
 constexpr uint32_t kAttachments = kColorTargets + 1;
@@ -94,34 +100,96 @@ gpu::PkLightGpu packLight(const PunctualLight& light) {
 
 } // namespace
 
-Camera frameBounds(const grid::Aabb& bounds, float vertical_fov_deg, float aspect) {
+Camera frameBounds(const grid::Aabb& bounds, float vertical_fov_deg, float aspect, glm::vec3 side) {
+    side = glm::normalize(side);
     const glm::vec3 center = bounds.center();
     const glm::vec3 half = 0.5f * bounds.size();
     const float tan_half = std::tan(glm::radians(vertical_fov_deg) * 0.5f);
-    // Distance from the front face (z = min.z) at which the face fits both angles.
-    const float fit = std::max(half.y, half.x / std::max(aspect, 1e-6f)) / tan_half;
-    const float margin = 1.1f;
     Camera camera;
+    // Seen from +-Y, +Y cannot be up: the top of the image is then the far side along Z.
+    camera.up = std::abs(side.y) > 0.5f ? glm::vec3(0.0f, 0.0f, side.y > 0.0f ? -1.0f : 1.0f)
+                                        : glm::vec3(0.0f, 1.0f, 0.0f);
+    const glm::vec3 right = glm::normalize(glm::cross(-side, camera.up));
+    const glm::vec3 up = glm::cross(right, -side);
+    // The box's half extents across the image and towards the camera (support distances).
+    const float across = glm::dot(glm::abs(right), half);
+    const float upward = glm::dot(glm::abs(up), half);
+    const float depth = glm::dot(glm::abs(side), half);
+    // Distance from the near face at which the face fits both angles.
+    const float fit = std::max(upward, across / std::max(aspect, 1e-6f)) / tan_half;
+    const float margin = 1.1f;
+    const float distance = depth + fit * margin;
     camera.verticalFovDeg = vertical_fov_deg;
     camera.target = center;
-    camera.eye = glm::vec3(center.x, center.y, bounds.min.z - fit * margin);
-    const float distance = center.z - camera.eye.z;
+    camera.eye = center + side * distance;
     const float extent = glm::length(bounds.size());
     camera.nearPlane = std::max(1e-4f, 0.01f * distance);
     camera.farPlane = distance + 2.0f * extent + 1.0f;
     return camera;
 }
 
+namespace {
+
+// The camera's basis scaled to the image plane at distance 1: a pixel's ray is forward +
+// ndc.x right + ndc.y up (lookAtRH's axes, so the rays match the rasterised geometry).
+struct CameraBasis {
+    glm::vec3 right, up, forward;
+};
+
+CameraBasis cameraBasis(const Camera& camera, float aspect) {
+    const glm::vec3 forward = glm::normalize(camera.target - camera.eye);
+    const glm::vec3 right = glm::normalize(glm::cross(forward, camera.up));
+    const glm::vec3 up = glm::cross(right, forward);
+    const float tan_half = std::tan(glm::radians(camera.verticalFovDeg) * 0.5f);
+    return {right * (tan_half * aspect), up * tan_half, forward};
+}
+
+} // namespace
+
+glm::vec3 pixelDirection(const Camera& camera, uint32_t width, uint32_t height, glm::vec2 pixel) {
+    const CameraBasis b = cameraBasis(camera, float(width) / float(height));
+    const glm::vec2 ndc(2.0f * pixel.x / float(width) - 1.0f,
+                        1.0f - 2.0f * pixel.y / float(height));
+    return glm::normalize(b.forward + ndc.x * b.right + ndc.y * b.up);
+}
+
+uint32_t probeBudget(uint32_t width, uint32_t height) {
+    return std::max<uint32_t>(1, uint32_t(uint64_t(width) * height / kProbePixels));
+}
+
+namespace {
+
+// The first of setTextures's images in Renderer::Impl::textures (after white and environment).
+constexpr size_t kWhiteTexture = 0;
+constexpr size_t kEnvironmentTexture = 1;
+constexpr size_t kUserTextures = 2;
+
+struct Texture {
+    Image image;
+    VkDescriptorSet set = VK_NULL_HANDLE;
+};
+
+// indexCount indices from firstIndex, all sampling textures[texture].
+struct DrawRun {
+    uint32_t firstIndex = 0;
+    uint32_t indexCount = 0;
+    size_t texture = kWhiteTexture;
+};
+
+} // namespace
+
 struct Renderer::Impl {
     GpuContext* context = nullptr;
     VkDescriptorSetLayout volumeLayout = VK_NULL_HANDLE;
-    VkDescriptorSetLayout frameLayout = VK_NULL_HANDLE; // G-buffer pass: frame uniforms
-    VkDescriptorSetLayout shadeLayout = VK_NULL_HANDLE; // shading: uniforms + G-buffer + output
+    VkDescriptorSetLayout frameLayout = VK_NULL_HANDLE;   // G-buffer pass: frame uniforms
+    VkDescriptorSetLayout shadeLayout = VK_NULL_HANDLE;   // shading: uniforms + G-buffer + output
+    VkDescriptorSetLayout textureLayout = VK_NULL_HANDLE; // G-buffer pass: one sampled texture
     VkPipelineLayout gbufferPipelineLayout = VK_NULL_HANDLE;
     VkPipelineLayout shadePipelineLayout = VK_NULL_HANDLE;
     VkRenderPass renderPass = VK_NULL_HANDLE;
     VkPipeline meshPipeline = VK_NULL_HANDLE;
     VkPipeline probePipeline = VK_NULL_HANDLE;
+    VkPipeline backgroundPipeline = VK_NULL_HANDLE;
     // Shading pipelines by pk_visibility_mode (shaders/probe_volume.glsl): [0] specialised
     // PK_VISIBILITY_OFF, for sets without visibility (exactly the hardware-filtered code), [1]
     // visibilityMode, for sets with.
@@ -142,6 +210,17 @@ struct Renderer::Impl {
     Buffer sphere;
     uint32_t sphereVertices = 0;
     Buffer instances;
+    ProbeStats probeStats; // of the last probes or validity frame
+    // Textures: [0] 1 x 1 white (untextured triangles, probe spheres), [1] the environment's
+    // lat-long (or a white placeholder), then setTextures's images from kUserTextures on; each
+    // with its own descriptor set from `texturePool`.
+    VkSampler sampler = VK_NULL_HANDLE;
+    VkDescriptorPool texturePool = VK_NULL_HANDLE;
+    std::vector<Texture> textures;
+    // Mesh triangles drawn in runs of one texture (setMeshes sorts them).
+    std::vector<DrawRun> runs;
+    uint32_t environmentType = PK_ENV_NONE;
+    glm::vec4 environment{0.0f}; // PkFrameGpu.environment
     // Size-dependent targets.
     uint32_t width = 0;
     uint32_t height = 0;
@@ -161,7 +240,11 @@ struct Renderer::Impl {
     Result<void> createProbePipeline(VkShaderModule vertex, VkShaderModule fragment);
     Result<void> createGBufferPipeline(VkShaderModule vertex, VkShaderModule fragment,
                                        const VkPipelineVertexInputStateCreateInfo& input,
-                                       VkPipeline& pipeline);
+                                       bool depth_tested, VkPipeline& pipeline);
+    Result<void> createTextureResources();
+    // Uploads `image` (linear RGBA) as textures[index], creating its descriptor set.
+    Result<void> uploadTexture(const RgbaImage& image, size_t index);
+    void destroyTexture(Texture& texture);
     Result<void> writeInstances(const GpuVolumeSet& volumes, const FrameSettings& settings,
                                 uint32_t& count);
     void record(VkCommandBuffer cmd, GpuVolumeSet& volumes, const FrameSettings& settings,
@@ -178,9 +261,18 @@ Renderer::Impl::~Impl() {
     for (Buffer* b : {&frameUniforms, &vertices, &indices, &sphere, &instances}) {
         detail::destroy(d, *b);
     }
-    for (VkPipeline p :
-         {meshPipeline, probePipeline, shadePipeline[0], shadePipeline[1], probeViewsPipeline[0],
-          probeViewsPipeline[1], fetchOnlyPipeline[0], fetchOnlyPipeline[1]}) {
+    for (Texture& t : textures) {
+        destroyTexture(t);
+    }
+    if (sampler != VK_NULL_HANDLE) {
+        vkDestroySampler(d, sampler, nullptr);
+    }
+    if (texturePool != VK_NULL_HANDLE) {
+        vkDestroyDescriptorPool(d, texturePool, nullptr);
+    }
+    for (VkPipeline p : {meshPipeline, probePipeline, backgroundPipeline, shadePipeline[0],
+                         shadePipeline[1], probeViewsPipeline[0], probeViewsPipeline[1],
+                         fetchOnlyPipeline[0], fetchOnlyPipeline[1]}) {
         if (p != VK_NULL_HANDLE) {
             vkDestroyPipeline(d, p, nullptr);
         }
@@ -190,7 +282,7 @@ Renderer::Impl::~Impl() {
             vkDestroyPipelineLayout(d, l, nullptr);
         }
     }
-    for (VkDescriptorSetLayout l : {volumeLayout, frameLayout, shadeLayout}) {
+    for (VkDescriptorSetLayout l : {volumeLayout, frameLayout, shadeLayout, textureLayout}) {
         if (l != VK_NULL_HANDLE) {
             vkDestroyDescriptorSetLayout(d, l, nullptr);
         }
@@ -305,6 +397,8 @@ public:
         GBufferVert,
         ProbeSphereVert,
         GBufferFrag,
+        BackgroundVert,
+        BackgroundFrag,
         Shade,
         ShadeProbeViews,
         ShadeFetchOnly,
@@ -325,7 +419,8 @@ public:
     Result<void> load() {
         const std::span<const uint32_t> codes[kCount] = {
             detail::spirv::gbufferVert(),         detail::spirv::probeSphereVert(),
-            detail::spirv::gbufferFrag(),         detail::spirv::shadeComp(),
+            detail::spirv::gbufferFrag(),         detail::spirv::backgroundVert(),
+            detail::spirv::backgroundFrag(),      detail::spirv::shadeComp(),
             detail::spirv::shadeProbeViewsComp(), detail::spirv::shadeFetchOnlyComp()};
         for (size_t i = 0; i < kCount; ++i) {
             Result<VkShaderModule> module = detail::createShaderModule(m_device, codes[i]);
@@ -426,6 +521,13 @@ Result<void> Renderer::Impl::createPipelines() {
                               modules[ShaderModules::GBufferFrag]));
     PK_TRY(createProbePipeline(modules[ShaderModules::ProbeSphereVert],
                                modules[ShaderModules::GBufferFrag]));
+    // The background: no vertex input (the shader makes its triangle), no depth test or write,
+    // drawn before everything else.
+    const VkPipelineVertexInputStateCreateInfo no_input{
+        VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
+    PK_TRY(createGBufferPipeline(modules[ShaderModules::BackgroundVert],
+                                 modules[ShaderModules::BackgroundFrag], no_input, false,
+                                 backgroundPipeline));
     // Each shading variant twice: [0] without visibility, [1] with the device's mode.
     const std::pair<VkShaderModule, VkPipeline*> shading[3] = {
         {modules[ShaderModules::Shade], shadePipeline},
@@ -472,6 +574,10 @@ Result<void> Renderer::Impl::createLayouts() {
         0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
         VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
     PK_TRY(detail::createDescriptorSetLayout(device(), {&frame_binding, 1}, frameLayout));
+    // G-buffer pass, set 1: the draw's texture (base colour, or the environment's lat-long).
+    const VkDescriptorSetLayoutBinding texture_binding{0, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
+                                                       1, VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
+    PK_TRY(detail::createDescriptorSetLayout(device(), {&texture_binding, 1}, textureLayout));
     // Shading pass: the frame uniforms, then the G-buffer targets and the output image.
     std::array<VkDescriptorSetLayoutBinding, 1 + kShadeImages> shade_bindings{};
     shade_bindings[0] = {0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT,
@@ -488,8 +594,9 @@ Result<void> Renderer::Impl::createLayouts() {
     volumeLayout = volume_layout.value();
 
     VkPipelineLayoutCreateInfo pipeline_layout{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-    pipeline_layout.setLayoutCount = 1;
-    pipeline_layout.pSetLayouts = &frameLayout;
+    const VkDescriptorSetLayout gbuffer_sets[2] = {frameLayout, textureLayout};
+    pipeline_layout.setLayoutCount = 2;
+    pipeline_layout.pSetLayouts = gbuffer_sets;
     PK_VK_TRY(vkCreatePipelineLayout(device(), &pipeline_layout, nullptr, &gbufferPipelineLayout));
     const VkDescriptorSetLayout shade_sets[2] = {volumeLayout, shadeLayout};
     pipeline_layout.setLayoutCount = 2;
@@ -501,18 +608,19 @@ Result<void> Renderer::Impl::createLayouts() {
 Result<void> Renderer::Impl::createMeshPipeline(VkShaderModule vertex, VkShaderModule fragment) {
     const VkVertexInputBindingDescription binding{0, sizeof(RenderVertex),
                                                   VK_VERTEX_INPUT_RATE_VERTEX};
-    const VkVertexInputAttributeDescription attributes[4] = {
+    const VkVertexInputAttributeDescription attributes[5] = {
         {0, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, position))},
         {1, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, normal))},
         {2, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, albedo))},
-        {3, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, emission))}};
+        {3, 0, VK_FORMAT_R32G32B32_SFLOAT, uint32_t(offsetof(RenderVertex, emission))},
+        {4, 0, VK_FORMAT_R32G32_SFLOAT, uint32_t(offsetof(RenderVertex, uv))}};
     VkPipelineVertexInputStateCreateInfo input{
         VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
     input.vertexBindingDescriptionCount = 1;
     input.pVertexBindingDescriptions = &binding;
-    input.vertexAttributeDescriptionCount = 4;
+    input.vertexAttributeDescriptionCount = 5;
     input.pVertexAttributeDescriptions = attributes;
-    return createGBufferPipeline(vertex, fragment, input, meshPipeline);
+    return createGBufferPipeline(vertex, fragment, input, true, meshPipeline);
 }
 
 Result<void> Renderer::Impl::createProbePipeline(VkShaderModule vertex, VkShaderModule fragment) {
@@ -530,15 +638,15 @@ Result<void> Renderer::Impl::createProbePipeline(VkShaderModule vertex, VkShader
     input.pVertexBindingDescriptions = bindings;
     input.vertexAttributeDescriptionCount = 3;
     input.pVertexAttributeDescriptions = attributes;
-    return createGBufferPipeline(vertex, fragment, input, probePipeline);
+    return createGBufferPipeline(vertex, fragment, input, true, probePipeline);
 }
 
-// The state both G-buffer pipelines (meshes, probe spheres) share; only the vertex input and the
-// vertex shader differ.
+// The state the G-buffer pipelines (meshes, probe spheres, background) share; only the shaders,
+// the vertex input and whether depth is tested and written differ.
 Result<void>
 Renderer::Impl::createGBufferPipeline(VkShaderModule vertex, VkShaderModule fragment,
                                       const VkPipelineVertexInputStateCreateInfo& input,
-                                      VkPipeline& pipeline) {
+                                      bool depth_tested, VkPipeline& pipeline) {
     VkPipelineShaderStageCreateInfo stages[2]{};
     for (auto& s : stages) {
         s.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO;
@@ -566,8 +674,8 @@ Renderer::Impl::createGBufferPipeline(VkShaderModule vertex, VkShaderModule frag
     multisample.rasterizationSamples = VK_SAMPLE_COUNT_1_BIT;
     VkPipelineDepthStencilStateCreateInfo depth_state{
         VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
-    depth_state.depthTestEnable = VK_TRUE;
-    depth_state.depthWriteEnable = VK_TRUE;
+    depth_state.depthTestEnable = depth_tested ? VK_TRUE : VK_FALSE;
+    depth_state.depthWriteEnable = depth_tested ? VK_TRUE : VK_FALSE;
     depth_state.depthCompareOp = VK_COMPARE_OP_LESS;
     // Identical for every target (no independentBlend feature needed); the id target ignores
     // the components it does not have.
@@ -609,68 +717,177 @@ Renderer::Impl::createGBufferPipeline(VkShaderModule vertex, VkShaderModule frag
 
 namespace {
 
-// The probe spheres of a bricked volume (render_layout.h's bricked id): brick probe k at its
-// lattice position, radius 0.15 x the brick's probe spacing unless `fixed_radius` > 0.
-Result<void> appendBrickInstances(const VolumeDesc& desc, const std::vector<uint8_t>& validity,
-                                  uint32_t slot, float fixed_radius,
-                                  std::vector<ProbeInstance>& list) {
-    const brick::BrickLayout& layout = desc.bricks;
-    if (desc.probeCount() >= (size_t(1) << 24)) {
-        return makeError(ErrorCode::OutOfRange,
-                         "renderer: volume \"" + desc.name + "\" has " +
-                             std::to_string(desc.probeCount()) +
-                             " probes; the probe views show at most 2^24 per bricked volume");
-    }
-    const grid::Aabb& box = desc.grid.bounds();
-    const glm::uvec3 cells = brick::finestCells(desc.grid.resolution(), layout.maxLevel);
-    // Lattice step (finest level): a finest cell holds 3 probe intervals.
-    const glm::vec3 lattice_step = box.size() / (3.0f * glm::vec3(cells));
-    for (size_t b = 0; b < layout.bricks.size(); ++b) {
-        const brick::Brick& br = layout.bricks[b];
-        const glm::vec3 spacing = lattice_step * float(1u << (layout.maxLevel - br.level));
-        const float radius = fixed_radius > 0.0f
-                                 ? fixed_radius
-                                 : 0.15f * std::min(spacing.x, std::min(spacing.y, spacing.z));
-        for (uint32_t k = 0; k < brick::kBrickProbeCount; ++k) {
-            const size_t probe = b * brick::kBrickProbeCount + k;
-            const glm::uvec3 local(k % 4, (k / 4) % 4, k / 16);
-            const glm::vec3 at =
-                box.min + glm::vec3(brick::latticeCoord(br, local, layout.maxLevel)) * lattice_step;
-            const uint32_t valid = validity[probe] == kProbeValid ? 1u : 0u;
-            const uint32_t id = PK_KIND_PROBE | (valid << 2u) | (slot << 3u) |
-                                (uint32_t(br.level) << 6u) | (uint32_t(probe) << 8u);
-            list.push_back({glm::vec4(desc.grid.frame().toWorld(at), radius), id});
+// A probe the probes and validity views may draw: world position, radius before decimation,
+// G-buffer id (render_layout.h), lattice coordinates (decimation keeps every stride-th).
+struct ProbeCandidate {
+    glm::vec3 world;
+    float radius;
+    uint32_t id;
+    glm::uvec3 lattice;
+    bool valid;
+};
+
+// Calls visit(candidate) for every probe of every volume: dense volumes' probes at their grid
+// coordinates, bricked volumes' brick probe k at its finest-level lattice position (radius 0.15
+// x the brick's own probe spacing); `fixed_radius` > 0 replaces the radius.
+template <class Visit>
+Result<void> forEachProbe(const GpuVolumeSet& volumes, float fixed_radius, const Visit& visit) {
+    auto radiusOf = [&](glm::vec3 spacing) {
+        return fixed_radius > 0.0f ? fixed_radius
+                                   : 0.15f * std::min(spacing.x, std::min(spacing.y, spacing.z));
+    };
+    for (size_t s = 0; s < volumes.size(); ++s) {
+        const VolumeDesc& desc = volumes.desc(s);
+        const std::vector<uint8_t>& validity = volumes.validity(s);
+        const uint32_t slot = uint32_t(s) << 3u;
+        const grid::GridLayout& layout = desc.grid;
+        if (desc.layout != VolumeLayout::Bricked) {
+            const float radius = radiusOf(layout.spacing());
+            for (size_t i = 0; i < layout.probeCount(); ++i) {
+                const glm::uvec3 c = layout.probeCoords(i);
+                const bool valid = validity[i] == kProbeValid;
+                const uint32_t id = PK_KIND_PROBE | (uint32_t(valid) << 2u) | slot | (c.x << 8u) |
+                                    (c.y << 16u) | (c.z << 24u);
+                visit(ProbeCandidate{layout.probeWorld(c), radius, id, c, valid});
+            }
+            continue;
+        }
+        const brick::BrickLayout& bricks = desc.bricks;
+        if (desc.probeCount() >= (size_t(1) << 24)) {
+            return makeError(ErrorCode::OutOfRange,
+                             "renderer: volume \"" + desc.name + "\" has " +
+                                 std::to_string(desc.probeCount()) +
+                                 " probes; the probe views show at most 2^24 per bricked volume");
+        }
+        const grid::Aabb& box = layout.bounds();
+        const glm::uvec3 cells = brick::finestCells(layout.resolution(), bricks.maxLevel);
+        // Lattice step (finest level): a finest cell holds 3 probe intervals.
+        const glm::vec3 lattice_step = box.size() / (3.0f * glm::vec3(cells));
+        for (size_t b = 0; b < bricks.bricks.size(); ++b) {
+            const brick::Brick& br = bricks.bricks[b];
+            const float radius = radiusOf(lattice_step * float(1u << (bricks.maxLevel - br.level)));
+            for (uint32_t k = 0; k < brick::kBrickProbeCount; ++k) {
+                const size_t probe = b * brick::kBrickProbeCount + k;
+                const glm::uvec3 lattice = brick::latticeCoord(
+                    br, glm::uvec3(k % 4, (k / 4) % 4, k / 16), bricks.maxLevel);
+                const glm::vec3 at = box.min + glm::vec3(lattice) * lattice_step;
+                const bool valid = validity[probe] == kProbeValid;
+                const uint32_t id = PK_KIND_PROBE | (uint32_t(valid) << 2u) | slot |
+                                    (uint32_t(br.level) << 6u) | (uint32_t(probe) << 8u);
+                visit(ProbeCandidate{layout.frame().toWorld(at), radius, id, lattice, valid});
+            }
         }
     }
     return {};
+}
+
+// Where a probe sphere lands in the image (probeBudget's visibility rule).
+class ProbeProjector {
+public:
+    ProbeProjector(const FrameSettings& settings, const glm::mat4& view_projection)
+        : m_viewProjection(view_projection), m_eye(settings.camera.eye),
+          m_forward(glm::normalize(settings.camera.target - settings.camera.eye)),
+          m_near(settings.camera.nearPlane), m_width(float(settings.width)),
+          m_height(float(settings.height)),
+          m_pixelsPerUnit(float(settings.height) * 0.5f /
+                          std::tan(glm::radians(settings.camera.verticalFovDeg) * 0.5f)) {}
+
+    // The sphere's distance along the view axis when it is in front of the near plane and
+    // overlaps the image, else 0.
+    float depthInView(glm::vec3 center, float radius) const {
+        const float depth = glm::dot(center - m_eye, m_forward);
+        if (!(depth > m_near)) {
+            return 0.0f;
+        }
+        const glm::vec4 clip = m_viewProjection * glm::vec4(center, 1.0f);
+        const float margin = radius * m_pixelsPerUnit / depth;
+        const float x = (clip.x / clip.w * 0.5f + 0.5f) * m_width;
+        const float y = (clip.y / clip.w * 0.5f + 0.5f) * m_height;
+        const bool inside =
+            x > -margin && x < m_width + margin && y > -margin && y < m_height + margin;
+        return inside ? depth : 0.0f;
+    }
+    // World radius that is `pixels` on screen at `depth`.
+    float worldRadius(float pixels, float depth) const { return pixels * depth / m_pixelsPerUnit; }
+
+private:
+    glm::mat4 m_viewProjection;
+    glm::vec3 m_eye, m_forward;
+    float m_near, m_width, m_height, m_pixelsPerUnit;
+};
+
+// How coarse a sub-grid a probe belongs to: the largest k with every lattice coordinate a
+// multiple of 2^k (0 counts as a multiple of all); invalid probes in the validity view rank
+// above every sub-grid, so they are the last to go.
+constexpr uint32_t kProbeRanks = 32;
+uint32_t probeRank(const ProbeCandidate& p, bool keep_invalid) {
+    if (keep_invalid && !p.valid) {
+        return kProbeRanks - 1;
+    }
+    auto zeros = [](uint32_t v) {
+        return v == 0 ? kProbeRanks - 2 : uint32_t(std::countr_zero(v));
+    };
+    return std::min({zeros(p.lattice.x), zeros(p.lattice.y), zeros(p.lattice.z), kProbeRanks - 2});
+}
+
+glm::mat4 viewProjection(const FrameSettings& settings) {
+    const Camera& cam = settings.camera;
+    const glm::mat4 view = glm::lookAtRH(cam.eye, cam.target, cam.up);
+    glm::mat4 projection = glm::perspectiveRH_ZO(glm::radians(cam.verticalFovDeg),
+                                                 float(settings.width) / float(settings.height),
+                                                 cam.nearPlane, cam.farPlane);
+    projection[1][1] *= -1.0f; // Vulkan's clip space has +y down: row 0 is the image top
+    return projection * view;
 }
 
 } // namespace
 
 Result<void> Renderer::Impl::writeInstances(const GpuVolumeSet& volumes,
                                             const FrameSettings& settings, uint32_t& count) {
-    std::vector<ProbeInstance> list;
-    for (size_t s = 0; s < volumes.size(); ++s) {
-        const VolumeDesc& desc = volumes.desc(s);
-        const grid::GridLayout& layout = desc.grid;
-        if (desc.layout == VolumeLayout::Bricked) {
-            PK_TRY(appendBrickInstances(desc, volumes.validity(s), uint32_t(s),
-                                        settings.probeRadius, list));
-            continue;
+    // probeBudget's rule, in two passes over the probes (5 M of them fit no list): count the
+    // visible ones by rank, pick the smallest stride 2^k that fits the budget, then write those.
+    const ProbeProjector projector(settings, viewProjection(settings));
+    const bool keep_invalid = settings.view == RenderView::Validity;
+    ProbeStats stats;
+    stats.budget = probeBudget(settings.width, settings.height);
+    std::array<uint64_t, kProbeRanks> by_rank{};
+    PK_TRY(forEachProbe(volumes, settings.probeRadius, [&](const ProbeCandidate& p) {
+        ++stats.total;
+        if (projector.depthInView(p.world, p.radius) > 0.0f) {
+            ++by_rank[probeRank(p, keep_invalid)];
         }
-        const glm::vec3 spacing = layout.spacing();
-        const float radius = settings.probeRadius > 0.0f
-                                 ? settings.probeRadius
-                                 : 0.15f * std::min(spacing.x, std::min(spacing.y, spacing.z));
-        const std::vector<uint8_t>& validity = volumes.validity(s);
-        for (size_t i = 0; i < layout.probeCount(); ++i) {
-            const glm::uvec3 c = layout.probeCoords(i);
-            const uint32_t valid = validity[i] == kProbeValid ? 1u : 0u;
-            const uint32_t probe_id = PK_KIND_PROBE | (valid << 2u) | (uint32_t(s) << 3u) |
-                                      (c.x << 8u) | (c.y << 16u) | (c.z << 24u);
-            list.push_back({glm::vec4(layout.probeWorld(c), radius), probe_id});
-        }
+    }));
+    uint32_t rank = kProbeRanks - 1;
+    uint64_t kept = by_rank[rank];
+    while (rank > 0 && kept + by_rank[rank - 1] <= stats.budget) {
+        kept += by_rank[--rank];
     }
+    for (uint64_t n : by_rank) {
+        stats.inView += n;
+    }
+    // The sub-grid's spacing scales the spheres, up to the coarsest sub-grid the lattice has
+    // (ranks above it hold only probes at coordinate 0, or the validity view's invalid ones).
+    uint32_t coarsest = 0;
+    for (uint32_t r = 0; r + 2 < kProbeRanks; ++r) {
+        coarsest = by_rank[r] > 0 ? r : coarsest;
+    }
+    const uint32_t stride_log2 = std::min(rank, coarsest);
+    stats.stride = 1u << stride_log2;
+    std::vector<ProbeInstance> list;
+    list.reserve(std::min<uint64_t>(kept, stats.budget));
+    PK_TRY(forEachProbe(volumes, settings.probeRadius, [&](const ProbeCandidate& p) {
+        if (list.size() >= stats.budget || probeRank(p, keep_invalid) < rank) {
+            return;
+        }
+        const float distance = projector.depthInView(p.world, p.radius);
+        if (distance > 0.0f) {
+            const float radius = std::max(p.radius * float(stats.stride),
+                                          projector.worldRadius(kMinProbeRadiusPixels, distance));
+            list.push_back({glm::vec4(p.world, radius), p.id});
+        }
+    }));
+    stats.drawn = list.size();
+    probeStats = stats;
     const VkDeviceSize bytes = list.size() * sizeof(ProbeInstance);
     if (instances.size < bytes) {
         // Earlier frames are complete (render waits for each), so the old buffer is free.
@@ -682,7 +899,9 @@ Result<void> Renderer::Impl::writeInstances(const GpuVolumeSet& volumes,
         }
         instances = buffer.value();
     }
-    std::memcpy(instances.mapped, list.data(), bytes);
+    if (bytes > 0) {
+        std::memcpy(instances.mapped, list.data(), bytes);
+    }
     count = uint32_t(list.size());
     return {};
 }
@@ -698,13 +917,14 @@ void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
     // Frame uniforms, captured in the command buffer.
     gpu::PkFrameGpu frame{};
     const Camera& cam = settings.camera;
-    const glm::mat4 view = glm::lookAtRH(cam.eye, cam.target, cam.up);
-    glm::mat4 projection = glm::perspectiveRH_ZO(glm::radians(cam.verticalFovDeg),
-                                                 float(settings.width) / float(settings.height),
-                                                 cam.nearPlane, cam.farPlane);
-    projection[1][1] *= -1.0f; // Vulkan's clip space has +y down: row 0 is the image top
-    frame.viewProjection = projection * view;
+    frame.viewProjection = viewProjection(settings);
     frame.eye = glm::vec4(cam.eye, 1.0f);
+    const CameraBasis basis = cameraBasis(cam, float(settings.width) / float(settings.height));
+    frame.cameraRight = glm::vec4(basis.right, 0.0f);
+    frame.cameraUp = glm::vec4(basis.up, 0.0f);
+    frame.cameraForward = glm::vec4(basis.forward, 0.0f);
+    frame.environment = environment;
+    frame.environmentInfo = glm::uvec4(environmentType, 0u, 0u, 0u);
     frame.info = glm::uvec4(uint32_t(settings.view), uint32_t(settings.lights.size()),
                             settings.directLight ? 1u : 0u, 0u);
     frame.size = glm::uvec4(settings.width, settings.height, 0u, 0u);
@@ -746,15 +966,31 @@ void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
     vkCmdSetScissor(cmd, 0, 1, &scissor);
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbufferPipelineLayout, 0, 1,
                             &frameSet, 0, nullptr);
+    auto bindTexture = [&](size_t texture) {
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, gbufferPipelineLayout, 1, 1,
+                                &textures[texture].set, 0, nullptr);
+    };
+    // The environment first, without depth, in the views whose output is radiance.
+    const bool radiance_view =
+        settings.view == RenderView::Shaded || settings.view == RenderView::Probes;
+    if (settings.showEnvironment && radiance_view && environmentType != PK_ENV_NONE) {
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, backgroundPipeline);
+        bindTexture(kEnvironmentTexture);
+        vkCmdDraw(cmd, 3, 1, 0, 0);
+    }
     const VkDeviceSize zero = 0;
     if (indexCount > 0 && settings.view != RenderView::Validity) {
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, meshPipeline);
         vkCmdBindVertexBuffers(cmd, 0, 1, &vertices.buffer, &zero);
         vkCmdBindIndexBuffer(cmd, indices.buffer, 0, VK_INDEX_TYPE_UINT32);
-        vkCmdDrawIndexed(cmd, indexCount, 1, 0, 0, 0);
+        for (const DrawRun& run : runs) {
+            bindTexture(run.texture);
+            vkCmdDrawIndexed(cmd, run.indexCount, 1, run.firstIndex, 0, 0);
+        }
     }
     if (instance_count > 0) {
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, probePipeline);
+        bindTexture(kWhiteTexture);
         const VkBuffer buffers[2] = {sphere.buffer, instances.buffer};
         const VkDeviceSize offsets[2] = {0, 0};
         vkCmdBindVertexBuffers(cmd, 0, 2, buffers, offsets);
@@ -889,14 +1125,183 @@ Result<Renderer> Renderer::create(GpuContext& context) {
     query.queryType = VK_QUERY_TYPE_TIMESTAMP;
     query.queryCount = kTimestamps;
     PK_VK_TRY(vkCreateQueryPool(d, &query, nullptr, &impl->queries));
+    PK_TRY(impl->createTextureResources());
     return Renderer(std::move(impl));
 }
 
+Result<void> Renderer::Impl::createTextureResources() {
+    VkSamplerCreateInfo info{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
+    info.magFilter = VK_FILTER_LINEAR;
+    info.minFilter = VK_FILTER_LINEAR;
+    info.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
+    info.addressModeU = VK_SAMPLER_ADDRESS_MODE_REPEAT;
+    info.addressModeV = VK_SAMPLER_ADDRESS_MODE_REPEAT;
+    info.addressModeW = VK_SAMPLER_ADDRESS_MODE_REPEAT;
+    info.maxLod = 0.0f;
+    PK_VK_TRY(vkCreateSampler(device(), &info, nullptr, &sampler));
+    const VkDescriptorPoolSize size{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
+                                    uint32_t(kUserTextures + kMaxRenderTextures)};
+    VkDescriptorPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+    pool_info.flags = VK_DESCRIPTOR_POOL_CREATE_FREE_DESCRIPTOR_SET_BIT;
+    pool_info.maxSets = uint32_t(kUserTextures + kMaxRenderTextures);
+    pool_info.poolSizeCount = 1;
+    pool_info.pPoolSizes = &size;
+    PK_VK_TRY(vkCreateDescriptorPool(device(), &pool_info, nullptr, &texturePool));
+    // White: untextured triangles and probe spheres keep their albedo factor; it also stands in
+    // for the environment map until setEnvironment uploads one.
+    const RgbaImage white{1, 1, {glm::vec4(1.0f)}};
+    textures.resize(kUserTextures);
+    PK_TRY(uploadTexture(white, kWhiteTexture));
+    return uploadTexture(white, kEnvironmentTexture);
+}
+
+void Renderer::Impl::destroyTexture(Texture& texture) {
+    if (texture.set != VK_NULL_HANDLE) {
+        vkFreeDescriptorSets(device(), texturePool, 1, &texture.set);
+        texture.set = VK_NULL_HANDLE;
+    }
+    detail::destroy(device(), texture.image);
+}
+
+Result<void> Renderer::Impl::uploadTexture(const RgbaImage& image, size_t index) {
+    Texture& texture = textures[index];
+    destroyTexture(texture);
+    const VkExtent3D extent{image.width, image.height, 1};
+    Result<Image> created = detail::createImage(
+        *context, VK_IMAGE_TYPE_2D, kTextureFormat, extent,
+        VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT, VK_IMAGE_ASPECT_COLOR_BIT);
+    if (!created) {
+        return created.error();
+    }
+    texture.image = created.value();
+    // Binary16 texels, finite: radiance beyond the largest half is clamped to it.
+    const size_t texels = size_t(image.width) * image.height;
+    Result<Buffer> staging = detail::createBuffer(*context, texels * sizeof(uint64_t),
+                                                  VK_BUFFER_USAGE_TRANSFER_SRC_BIT, true);
+    if (!staging) {
+        return staging.error();
+    }
+    auto* out = static_cast<uint64_t*>(staging.value().mapped);
+    for (size_t i = 0; i < texels; ++i) {
+        out[i] =
+            glm::packHalf4x16(glm::clamp(image.texels[i], -float(PK_HALF_MAX), float(PK_HALF_MAX)));
+    }
+    const Result<void> copied = context->submitAndWait([&](VkCommandBuffer cmd) {
+        detail::imageBarrier(cmd, texture.image.image, VK_IMAGE_ASPECT_COLOR_BIT,
+                             VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                             VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, 0, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                             VK_ACCESS_TRANSFER_WRITE_BIT);
+        VkBufferImageCopy region{};
+        region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+        region.imageExtent = extent;
+        vkCmdCopyBufferToImage(cmd, staging.value().buffer, texture.image.image,
+                               VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
+        detail::imageBarrier(cmd, texture.image.image, VK_IMAGE_ASPECT_COLOR_BIT,
+                             VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                             VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL,
+                             VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+                             VK_PIPELINE_STAGE_FRAGMENT_SHADER_BIT, VK_ACCESS_SHADER_READ_BIT);
+    });
+    detail::destroy(device(), staging.value());
+    if (!copied) {
+        return copied.error();
+    }
+    VkDescriptorSetAllocateInfo allocate{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+    allocate.descriptorPool = texturePool;
+    allocate.descriptorSetCount = 1;
+    allocate.pSetLayouts = &textureLayout;
+    PK_VK_TRY(vkAllocateDescriptorSets(device(), &allocate, &texture.set));
+    const VkDescriptorImageInfo image_info{sampler, texture.image.view,
+                                           VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    VkWriteDescriptorSet write{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    write.dstSet = texture.set;
+    write.descriptorCount = 1;
+    write.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+    write.pImageInfo = &image_info;
+    vkUpdateDescriptorSets(device(), 1, &write, 0, nullptr);
+    return {};
+}
+
+Result<void> Renderer::setTextures(std::span<const RgbaImage> images) {
+    Impl& impl = *m_impl;
+    if (images.size() > kMaxRenderTextures) {
+        return makeError(ErrorCode::OutOfRange, "renderer: " + std::to_string(images.size()) +
+                                                    " textures, at most " +
+                                                    std::to_string(kMaxRenderTextures));
+    }
+    const uint32_t max_size = impl.context->limits().maxImageDimension2D;
+    for (size_t i = 0; i < images.size(); ++i) {
+        const RgbaImage& image = images[i];
+        if (image.width < 1 || image.height < 1 || image.width > max_size ||
+            image.height > max_size || image.texels.size() != size_t(image.width) * image.height) {
+            return makeError(ErrorCode::OutOfRange,
+                             "renderer: texture " + std::to_string(i) + " is " +
+                                 std::to_string(image.width) + "x" + std::to_string(image.height) +
+                                 " with " + std::to_string(image.texels.size()) +
+                                 " texels; each side must be in 1.." + std::to_string(max_size));
+        }
+    }
+    PK_TRY(setMeshes({}, {}));
+    for (size_t i = kUserTextures; i < impl.textures.size(); ++i) {
+        impl.destroyTexture(impl.textures[i]);
+    }
+    impl.textures.resize(kUserTextures + images.size());
+    for (size_t i = 0; i < images.size(); ++i) {
+        PK_TRY(impl.uploadTexture(images[i], kUserTextures + i));
+    }
+    return {};
+}
+
+Result<void> Renderer::setEnvironment(const Environment& environment) {
+    Impl& impl = *m_impl;
+    PK_TRY(impl.context->waitIdle());
+    impl.environmentType = PK_ENV_NONE;
+    impl.environment = glm::vec4(0.0f);
+    if (environment.isBlack()) {
+        return {};
+    }
+    if (environment.type == Environment::Type::Constant) {
+        impl.environmentType = PK_ENV_CONSTANT;
+        impl.environment = glm::vec4(environment.constant * environment.intensity, 0.0f);
+        return {};
+    }
+    const uint32_t max_size = impl.context->limits().maxImageDimension2D;
+    const RgbaImage& image = environment.image;
+    if (image.width > max_size || image.height > max_size ||
+        image.texels.size() != size_t(image.width) * image.height) {
+        return makeError(ErrorCode::OutOfRange,
+                         "renderer: environment " + environment.source + " is " +
+                             std::to_string(image.width) + "x" + std::to_string(image.height) +
+                             "; each side must be at most " + std::to_string(max_size));
+    }
+    PK_TRY(impl.uploadTexture(image, kEnvironmentTexture));
+    impl.environmentType = PK_ENV_LATLONG;
+    impl.environment =
+        glm::vec4(glm::vec3(environment.intensity), glm::radians(environment.rotationDeg));
+    return {};
+}
+
 Result<void> Renderer::setMeshes(std::span<const RenderVertex> vertices,
-                                 std::span<const uint32_t> indices) {
+                                 std::span<const uint32_t> indices,
+                                 std::span<const int32_t> triangle_textures) {
     if (indices.size() % 3 != 0) {
         return makeError(ErrorCode::OutOfRange, "renderer: " + std::to_string(indices.size()) +
                                                     " indices is not a whole number of triangles");
+    }
+    const size_t triangles = indices.size() / 3;
+    const size_t texture_count = m_impl->textures.size() - kUserTextures;
+    if (!triangle_textures.empty() && triangle_textures.size() != triangles) {
+        return makeError(ErrorCode::OutOfRange,
+                         "renderer: " + std::to_string(triangle_textures.size()) +
+                             " triangle textures for " + std::to_string(triangles) + " triangles");
+    }
+    for (size_t t = 0; t < triangle_textures.size(); ++t) {
+        if (triangle_textures[t] < -1 || triangle_textures[t] >= int64_t(texture_count)) {
+            return makeError(ErrorCode::OutOfRange, "renderer: triangle " + std::to_string(t) +
+                                                        " has texture " +
+                                                        std::to_string(triangle_textures[t]) +
+                                                        " of " + std::to_string(texture_count));
+        }
     }
     for (size_t i = 0; i < indices.size(); ++i) {
         if (indices[i] >= vertices.size()) {
@@ -912,8 +1317,31 @@ Result<void> Renderer::setMeshes(std::span<const RenderVertex> vertices,
     detail::destroy(d, impl.vertices);
     detail::destroy(d, impl.indices);
     impl.indexCount = 0;
+    impl.runs.clear();
     if (indices.empty()) {
         return {};
+    }
+    // Triangles in runs of one texture (stable: in their given order within a run), so each run
+    // is one draw with its texture bound.
+    auto textureOf = [&](size_t t) {
+        return triangle_textures.empty() || triangle_textures[t] < 0
+                   ? kWhiteTexture
+                   : kUserTextures + size_t(triangle_textures[t]);
+    };
+    std::vector<uint32_t> order(triangles);
+    for (size_t t = 0; t < triangles; ++t) {
+        order[t] = uint32_t(t);
+    }
+    std::stable_sort(order.begin(), order.end(),
+                     [&](uint32_t a, uint32_t b) { return textureOf(a) < textureOf(b); });
+    std::vector<uint32_t> sorted(indices.size());
+    for (size_t k = 0; k < triangles; ++k) {
+        std::copy_n(indices.begin() + 3 * order[k], 3, sorted.begin() + 3 * k);
+        const size_t texture = textureOf(order[k]);
+        if (impl.runs.empty() || impl.runs.back().texture != texture) {
+            impl.runs.push_back({uint32_t(3 * k), 0, texture});
+        }
+        impl.runs.back().indexCount += 3;
     }
     // Host-visible vertex data: simple, and read once per frame by a small renderer.
     Result<Buffer> v = detail::createBuffer(*impl.context, vertices.size_bytes(),
@@ -929,7 +1357,7 @@ Result<void> Renderer::setMeshes(std::span<const RenderVertex> vertices,
         return i.error();
     }
     impl.indices = i.value();
-    std::memcpy(impl.indices.mapped, indices.data(), indices.size_bytes());
+    std::memcpy(impl.indices.mapped, sorted.data(), indices.size_bytes());
     impl.indexCount = uint32_t(indices.size());
     return {};
 }
@@ -962,6 +1390,7 @@ Result<Frame> Renderer::render(GpuVolumeSet& volumes, const FrameSettings& setti
         PK_TRY(impl.createTargets(settings.width, settings.height));
     }
     uint32_t instance_count = 0;
+    impl.probeStats = {};
     if (settings.view == RenderView::Probes || settings.view == RenderView::Validity) {
         PK_TRY(impl.writeInstances(volumes, settings, instance_count));
     }
@@ -972,6 +1401,7 @@ Result<Frame> Renderer::render(GpuVolumeSet& volumes, const FrameSettings& setti
     Frame frame;
     frame.width = settings.width;
     frame.height = settings.height;
+    frame.probes = impl.probeStats;
     if (impl.context->timestampPeriodNs() > 0.0) {
         uint64_t ticks[kTimestamps];
         PK_VK_TRY(vkGetQueryPoolResults(impl.device(), impl.queries, 0, kTimestamps, sizeof(ticks),

@@ -17,6 +17,12 @@ constexpr uint32_t kProbeSphereVert[] = {
 constexpr uint32_t kGbufferFrag[] = {
 #include "gbuffer.frag.inc"
 };
+constexpr uint32_t kBackgroundVert[] = {
+#include "background.vert.inc"
+};
+constexpr uint32_t kBackgroundFrag[] = {
+#include "background.frag.inc"
+};
 constexpr uint32_t kShadeComp[] = {
 #include "shade.comp.inc"
 };
@@ -40,6 +46,12 @@ std::span<const uint32_t> probeSphereVert() {
 }
 std::span<const uint32_t> gbufferFrag() {
     return kGbufferFrag;
+}
+std::span<const uint32_t> backgroundVert() {
+    return kBackgroundVert;
+}
+std::span<const uint32_t> backgroundFrag() {
+    return kBackgroundFrag;
 }
 std::span<const uint32_t> shadeComp() {
     return kShadeComp;

@@ -79,6 +79,8 @@ namespace spirv {
 std::span<const uint32_t> gbufferVert();
 std::span<const uint32_t> probeSphereVert();
 std::span<const uint32_t> gbufferFrag();
+std::span<const uint32_t> backgroundVert();
+std::span<const uint32_t> backgroundFrag();
 std::span<const uint32_t> shadeComp();
 std::span<const uint32_t> shadeProbeViewsComp();
 std::span<const uint32_t> shadeFetchOnlyComp();

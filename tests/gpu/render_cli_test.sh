@@ -50,6 +50,17 @@ expect 0 "validity view" -- "$pk" render cornell.gltf volume.pvol -o v.png --siz
     --view validity --exposure 1 --normal-offset 0.01 --direct-light
 expect 0 '"shade_ms":.*"fetch_only_ms":|"fetch_only_ms":.*"shade_ms":' -- \
     "$pk" render cornell.gltf volume.pvol -o b.png --size 32,24 --bench 2
+# The preview's options: background, camera side, exposure; the probes view reports its budget.
+expect 0 "display: ACES filmic, exposure .*auto" -- "$pk" render cornell.gltf volume.pvol \
+    -o env.png --size 32,24 --env 0.3,0.4,0.6 --camera-from -z
+expect 0 "exposure \+1.00 EV \(fixed\)" -- "$pk" render cornell.gltf volume.pvol -o fx.png \
+    --size 32,24 --env none --fixed-exposure --exposure 1
+expect 0 "probes: drew [0-9]+ of 64 .*budget 12," -- "$pk" render cornell.gltf volume.pvol -o pb.png \
+    --size 32,24 --view probes --camera-from +x
+expect 1 "--env.*radiance" -- "$pk" render cornell.gltf volume.pvol -o bad.png --env -1,0,0
+check "no output from a bad --env" test ! -e bad.png
+expect 1 "missing.hdr" -- "$pk" render cornell.gltf volume.pvol -o bad.png --env missing.hdr
+expect 2 "" -- "$pk" render cornell.gltf volume.pvol -o x.png --camera-from z
 
 # A bricked bake renders in every view; the probes view colours probes by brick level.
 cat >bricked.json <<'JSON'

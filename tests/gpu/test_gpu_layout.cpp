@@ -60,7 +60,9 @@ TEST(GpuLayout, SizesAndOffsetsMatchStd140) {
     EXPECT_EQ(sizeof(gpu::PkVolumeGpu), 128u);
     EXPECT_EQ(sizeof(gpu::PkVolumeSetGpu), 64u + 128u * PK_MAX_VOLUMES);
     EXPECT_EQ(offsetof(gpu::PkVolumeSetGpu, volumes) % 16, 0u);
-    EXPECT_EQ(sizeof(gpu::PkFrameGpu), 112u + 64u * PK_MAX_LIGHTS);
+    // The lights, then the camera basis (3 rows) and the environment (2 rows) the background
+    // pass reads (render_layout.h).
+    EXPECT_EQ(sizeof(gpu::PkFrameGpu), 112u + 64u * PK_MAX_LIGHTS + 5u * 16u);
     // A uniform buffer update with vkCmdUpdateBuffer is limited to 65536 bytes.
     EXPECT_LE(sizeof(gpu::PkVolumeSetGpu), 65536u);
     EXPECT_EQ(runtime::kMaxGpuVolumes, size_t(PK_MAX_VOLUMES));

@@ -21,6 +21,7 @@
 #include "probekit/runtime/gpu_volumes.hpp"
 #include "probekit/runtime/renderer.hpp"
 #include "probekit/runtime/sampler.hpp"
+#include "probekit/runtime/tonemap.hpp"
 
 using namespace probekit;
 using namespace probekit::gputest;
@@ -397,7 +398,10 @@ TEST_F(Renderer, CornellIrradianceMatchesTheCpuSampler) {
     FrameSettings settings;
     settings.width = 160;
     settings.height = 120;
-    settings.camera = runtime::frameBounds(bounds, 40.0f, 160.0f / 120.0f);
+    // The default camera now frames a scene from +Z (glTF assets face +Z); the Cornell box opens
+    // towards -Z, so the test asks for that side, the classic front view it always used.
+    settings.camera =
+        runtime::frameBounds(bounds, 40.0f, 160.0f / 120.0f, glm::vec3(0.0f, 0.0f, -1.0f));
     settings.view = RenderView::Irradiance;
     settings.readbackGBuffer = true;
     Result<Frame> frame = renderer().render(gpu.value(), settings);
@@ -536,14 +540,18 @@ TEST_F(Renderer, BrickedProbeSpheresShowTheirLevelAndOwnSh) {
     ASSERT_TRUE(renderer().setMeshes({}, {}).ok());
 
     FrameSettings settings;
-    settings.width = 320;
-    settings.height = 320;
+    // Large enough that the probes view's budget (probeBudget: one probe per 64 pixels, 3,600
+    // here) takes every probe of this layout; at the 320 x 320 this test used before the budget
+    // existed it would draw a sub-grid.
+    settings.width = 480;
+    settings.height = 480;
     settings.camera.eye = glm::vec3(-2.5f, 2.0f, -3.5f);
     settings.camera.target = glm::vec3(0.0f);
     settings.view = RenderView::Probes;
     settings.readbackGBuffer = true;
     Result<Frame> probes = renderer().render(gpu.value(), settings);
     ASSERT_TRUE(probes.ok()) << probes.error().message;
+    EXPECT_EQ(probes.value().probes.stride, 1u) << probes.value().probes.inView << " in view";
     settings.view = RenderView::Validity;
     Result<Frame> lit = renderer().render(gpu.value(), settings);
     ASSERT_TRUE(lit.ok()) << lit.error().message;
@@ -795,6 +803,399 @@ TEST_F(Renderer, RejectsBadInput) {
     settings = planeView(8, 8);
     settings.camera.target = settings.camera.eye;
     EXPECT_EQ(renderer().render(gpu.value(), settings).error().code, ErrorCode::InvalidArgument);
+}
+
+// A volume whose every probe sees a uniform radiance L: E = pi L for any normal, so a shaded
+// Lambertian pixel is albedo x L (formats/CONVENTIONS.md); L = 0 gives a black volume.
+std::vector<Volume> furnaceVolumes(glm::vec3 radiance) {
+    return {makeTestVolume(planeVolumeSpec(), [&](glm::vec3) {
+        sh::ShRgb s;
+        s.rgb[0] = radiance * (2.0f * std::sqrt(sh::kPi));
+        return s;
+    })};
+}
+
+// A UV sphere of radius 1 at the origin, `segments` around and segments / 2 from pole to pole;
+// its vertex normals the analytic ones, or (flat) each triangle's face normal.
+void sphereMesh(uint32_t segments, bool flat, std::vector<RenderVertex>& vertices,
+                std::vector<uint32_t>& indices) {
+    auto at = [&](uint32_t i, uint32_t j) {
+        const float phi = 2.0f * sh::kPi * float(i) / float(segments);
+        const float theta = sh::kPi * float(j) / float(segments / 2);
+        return glm::vec3(std::sin(theta) * std::cos(phi), std::cos(theta),
+                         std::sin(theta) * std::sin(phi));
+    };
+    for (uint32_t j = 0; j < segments / 2; ++j) {
+        for (uint32_t i = 0; i < segments; ++i) {
+            const glm::vec3 q[4] = {at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)};
+            for (const glm::uvec3 t : {glm::uvec3(0, 1, 2), glm::uvec3(0, 2, 3)}) {
+                const glm::vec3 face = glm::cross(q[t.y] - q[t.x], q[t.z] - q[t.x]);
+                if (glm::length(face) < 1e-9f) {
+                    continue; // the poles' degenerate halves
+                }
+                for (int k = 0; k < 3; ++k) {
+                    indices.push_back(uint32_t(vertices.size()));
+                    const glm::vec3 p = q[t[k]];
+                    vertices.push_back({p, flat ? glm::normalize(face) : p, kAlbedo});
+                }
+            }
+        }
+    }
+}
+
+// Smooth shading: the G-buffer normal is the vertex normals interpolated per pixel, so on a
+// tessellated sphere it follows the analytic normal (the direction from the centre to the shaded
+// point) everywhere, where face normals jump by a facet's angle (7.5 degrees here) at every edge.
+//
+// Tolerance: on a facet the interpolated normal and the direction to the point differ by a
+// second-order term, at most about (7.5 degrees)^2 / 8 in radians = 0.12 degrees at a facet's
+// far corner for these facets; 0.25 degrees leaves room for the rasteriser's interpolation. Face
+// normals are off by up to half a facet's diagonal (~5 degrees): the test requires > 2.
+TEST_F(Renderer, SmoothNormalsFollowTheSphere) {
+    const std::vector<Volume> volumes = furnaceVolumes(glm::vec3(0.5f));
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+    FrameSettings settings;
+    settings.width = 128;
+    settings.height = 128;
+    settings.camera.eye = glm::vec3(0.5f, 0.8f, 3.0f);
+    settings.readbackGBuffer = true;
+    float worst[2] = {0.0f, 0.0f};
+    for (bool flat : {false, true}) {
+        std::vector<RenderVertex> vertices;
+        std::vector<uint32_t> indices;
+        sphereMesh(48, flat, vertices, indices);
+        ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+        Result<Frame> frame = renderer().render(gpu.value(), settings);
+        ASSERT_TRUE(frame.ok()) << frame.error().message;
+        size_t covered = 0;
+        for (size_t i = 0; i < frame.value().normal.size(); ++i) {
+            if (frame.value().position[i].w == 0.0f) {
+                continue;
+            }
+            ++covered;
+            const glm::vec3 want = glm::normalize(glm::vec3(frame.value().position[i]));
+            const glm::vec3 got = glm::normalize(glm::vec3(frame.value().normal[i]));
+            const float angle = std::acos(std::clamp(glm::dot(want, got), -1.0f, 1.0f));
+            worst[flat] = std::max(worst[flat], glm::degrees(angle));
+        }
+        EXPECT_GT(covered, size_t(128 * 128 / 4));
+    }
+    std::printf("[ figures  ] sphere normals against the analytic normal: smooth %.3f degrees, "
+                "flat %.3f degrees at worst (tolerance 0.25)\n",
+                double(worst[0]), double(worst[1]));
+    EXPECT_LE(worst[0], 0.25f);
+    EXPECT_GT(worst[1], 2.0f) << "face normals would pass too: the test cannot tell them apart";
+}
+
+// A quad in the plane z = 0 facing +Z, |x|, |y| <= 1, with uv (0, 0) at its top-left corner
+// (x, y) = (-1, 1) and uv (1, 1) at (1, -1), as a glTF texture maps it; texture index per triangle.
+void texturedQuad(glm::vec3 albedo, std::vector<RenderVertex>& vertices,
+                  std::vector<uint32_t>& indices) {
+    const glm::vec2 corners[4] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};
+    for (const glm::vec2& c : corners) {
+        const glm::vec2 uv((c.x + 1.0f) * 0.5f, (1.0f - c.y) * 0.5f);
+        vertices.push_back({glm::vec3(c, 0.0f), glm::vec3(0, 0, 1), albedo, glm::vec3(0.0f), uv});
+    }
+    indices = {0, 1, 2, 0, 2, 3};
+}
+
+// Base colour per pixel: a quad with an 8 x 8 checker (texels exact in binary16) lit by a
+// uniform radiance L shows albedo factor x texture(uv) x L at every pixel, the texture sampled
+// bilinearly at the interpolated uv. CPU twin: RgbaImage::sampleBilinear at the uv of the pixel's
+// G-buffer position (the quad maps position to uv linearly).
+//
+// Tolerance: the G-buffer stores albedo as binary16, which Vulkan lets round toward zero: 2^-10
+// relative (kShadedRelative, with the furnace's 1e-4). On top, the bilinear weights: the position
+// read back and the uv the rasteriser interpolated differ by float rounding (~1e-6 of the quad),
+// which the checker's steepest slope (0.6 per texel, 8 texels across) turns into < 1e-4; 2e-3
+// absolute covers it with room. Without per-pixel sampling (per-vertex albedo), a checker would
+// be a single flat colour: the test also requires both checker colours to appear.
+TEST_F(Renderer, TexturedQuadFollowsItsCheckerPerPixel) {
+    const glm::vec3 radiance(0.5f);
+    const std::vector<Volume> volumes = furnaceVolumes(radiance);
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+    RgbaImage checker{8, 8, {}};
+    for (uint32_t y = 0; y < 8; ++y) {
+        for (uint32_t x = 0; x < 8; ++x) {
+            checker.texels.push_back((x + y) % 2 == 0 ? glm::vec4(0.875f, 0.25f, 0.125f, 1.0f)
+                                                      : glm::vec4(0.25f, 0.75f, 0.5f, 1.0f));
+        }
+    }
+    const glm::vec3 factor(1.0f, 0.5f, 1.0f);
+    ASSERT_TRUE(renderer().setTextures(std::vector<RgbaImage>{checker}).ok());
+    std::vector<RenderVertex> vertices;
+    std::vector<uint32_t> indices;
+    texturedQuad(factor, vertices, indices);
+    ASSERT_TRUE(renderer().setMeshes(vertices, indices, std::vector<int32_t>{0, 0}).ok());
+    FrameSettings settings;
+    settings.width = 96;
+    settings.height = 96;
+    settings.camera.eye = glm::vec3(0.3f, -0.2f, 2.6f);
+    settings.readbackGBuffer = true;
+    Result<Frame> frame = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(frame.ok()) << frame.error().message;
+    size_t covered = 0, failures = 0, reddish = 0, greenish = 0;
+    float worst = 0.0f;
+    for (size_t i = 0; i < frame.value().color.size(); ++i) {
+        const glm::vec4 p = frame.value().position[i];
+        if (p.w == 0.0f) {
+            continue;
+        }
+        ++covered;
+        const glm::vec2 uv((p.x + 1.0f) * 0.5f, (1.0f - p.y) * 0.5f);
+        const glm::vec3 want = factor * glm::vec3(checker.sampleBilinear(uv)) * radiance;
+        const glm::vec3 got(frame.value().color[i]);
+        const float error = maxAbs(got - want) - kShadedRelative * maxAbs(want);
+        worst = std::max(worst, maxAbs(got - want));
+        failures += error <= 2e-3f ? 0 : 1;
+        // Red texels give x = 0.4375, green ones 0.125: split at the midpoint.
+        reddish += got.x > 0.28f ? 1 : 0;
+        greenish += got.x < 0.28f ? 1 : 0;
+    }
+    std::printf("[ figures  ] textured quad: %zu pixels vs the CPU bilinear sample, max abs "
+                "error %.3g (tolerance 2^-10 relative + 2e-3)\n",
+                covered, double(worst));
+    EXPECT_GT(covered, size_t(96 * 96 / 4));
+    EXPECT_EQ(failures, size_t(0));
+    EXPECT_GT(reddish, covered / 5);
+    EXPECT_GT(greenish, covered / 5);
+}
+
+// The environment behind the geometry: a constant one shows its radiance exactly at every empty
+// pixel (alpha 0) in the shaded view, nothing in the irradiance view; a lat-long one shows
+// Environment::radiance along runtime::pixelDirection, its CPU twin.
+//
+// Lat-long tolerance: the texels are stored as binary16 (2^-11 relative), the GPU's acos/atan
+// and the interpolation of the bilinear weights differ from the CPU's by ~1e-6 in uv, which this
+// smooth map (at most 0.5 per 2 pi of longitude and per pi of latitude across a 64 x 32 image)
+// turns into < 1e-4; 2e-3 relative holds both.
+TEST_F(Renderer, EnvironmentIsTheBackground) {
+    const std::vector<Volume> volumes = furnaceVolumes(glm::vec3(0.5f));
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+    ASSERT_TRUE(drawPlane());
+    Environment sky;
+    sky.constant = glm::vec3(0.25f, 0.5f, 1.0f);
+    sky.intensity = 2.0f;
+    ASSERT_TRUE(renderer().setEnvironment(sky).ok());
+    FrameSettings settings = planeView(64, 48);
+    settings.camera.eye = glm::vec3(0.3f, 0.6f, 3.0f); // the horizon in view: sky above the plane
+    Result<Frame> frame = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(frame.ok()) << frame.error().message;
+    size_t empty = 0;
+    for (size_t i = 0; i < frame.value().color.size(); ++i) {
+        if (frame.value().position[i].w == 0.0f) {
+            ++empty;
+            ASSERT_EQ(frame.value().color[i], glm::vec4(0.5f, 1.0f, 2.0f, 0.0f)) << "pixel " << i;
+        }
+    }
+    EXPECT_GT(empty, size_t(64 * 48 / 10));
+    settings.view = RenderView::Irradiance;
+    Result<Frame> irradiance = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(irradiance.ok());
+    for (size_t i = 0; i < irradiance.value().color.size(); ++i) {
+        if (irradiance.value().position[i].w == 0.0f) {
+            ASSERT_EQ(irradiance.value().color[i], glm::vec4(0.0f)) << "E has no background";
+        }
+    }
+
+    Environment map;
+    map.type = Environment::Type::LatLong;
+    map.image = {64, 32, {}};
+    for (uint32_t y = 0; y < 32; ++y) {
+        for (uint32_t x = 0; x < 64; ++x) {
+            const float u = (float(x) + 0.5f) / 64.0f;
+            const float v = (float(y) + 0.5f) / 32.0f;
+            map.image.texels.push_back(glm::vec4(1.0f + 0.5f * std::sin(2.0f * sh::kPi * u),
+                                                 1.0f - 0.5f * v, 0.5f + 0.5f * v, 1.0f));
+        }
+    }
+    map.intensity = 3.0f;
+    map.rotationDeg = 30.0f;
+    ASSERT_TRUE(renderer().setEnvironment(map).ok());
+    settings.view = RenderView::Shaded;
+    Result<Frame> mapped = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(mapped.ok()) << mapped.error().message;
+    float worst = 0.0f;
+    for (uint32_t y = 0; y < settings.height; ++y) {
+        for (uint32_t x = 0; x < settings.width; ++x) {
+            const size_t i = x + size_t(settings.width) * y;
+            if (mapped.value().position[i].w != 0.0f) {
+                continue;
+            }
+            const glm::vec3 dir = runtime::pixelDirection(settings.camera, settings.width,
+                                                          settings.height, glm::vec2(x, y) + 0.5f);
+            const glm::vec3 want = map.radiance(dir);
+            worst =
+                std::max(worst, maxAbs(glm::vec3(mapped.value().color[i]) - want) / maxAbs(want));
+        }
+    }
+    std::printf("[ figures  ] lat-long background vs Environment::radiance: max relative error "
+                "%.3g (tolerance 2e-3)\n",
+                double(worst));
+    EXPECT_LE(worst, 2e-3f);
+    ASSERT_TRUE(renderer().setEnvironment(Environment{}).ok()); // black again: no background
+}
+
+// Automatic exposure (runtime/tonemap.hpp) on real frames: a plane lit by a 2,049 W/m^2 sun (the
+// exporters' common value) and by a 1 W/m^2 one, the same direction, tone-mapped with each
+// frame's own automatic EV, give the same mean display value; linear scaling makes this exact up
+// to float rounding and the G-buffer's binary16 albedo, well inside 1%.
+TEST_F(Renderer, AutoExposureMakesASunAndADimRoomAlike) {
+    const std::vector<Volume> volumes = furnaceVolumes(glm::vec3(0.0f));
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+    ASSERT_TRUE(drawPlane());
+    FrameSettings settings = planeView(64, 48);
+    settings.directLight = true;
+    double means[2] = {0.0, 0.0};
+    double clipped_fixed = 0.0;
+    const float levels[2] = {2049.0f, 1.0f};
+    for (int k = 0; k < 2; ++k) {
+        PunctualLight sun;
+        sun.type = LightType::Directional;
+        sun.direction = glm::normalize(glm::vec3(0.3f, -1.0f, 0.2f));
+        sun.intensity = glm::vec3(levels[k]);
+        settings.lights = {sun};
+        Result<Frame> frame = renderer().render(gpu.value(), settings);
+        ASSERT_TRUE(frame.ok()) << frame.error().message;
+        const float ev = runtime::autoExposureEv(frame.value().color);
+        size_t covered = 0;
+        for (const glm::vec4& c : frame.value().color) {
+            if (c.w == 0.0f) {
+                continue;
+            }
+            ++covered;
+            const glm::vec3 shown = runtime::toneMap(glm::vec3(c), ev);
+            means[k] += (shown.x + shown.y + shown.z) / 3.0;
+            if (k == 0) {
+                clipped_fixed += runtime::toneMap(glm::vec3(c), 0.0f).x == 1.0f ? 1.0 : 0.0;
+            }
+        }
+        means[k] /= double(covered);
+        if (k == 0) {
+            clipped_fixed /= double(covered);
+        }
+    }
+    std::printf("[ figures  ] auto exposure: mean display value %.4f (2,049 W/m^2 sun), %.4f "
+                "(1 W/m^2); %.0f%% of the sunlit pixels clip at EV 0\n",
+                means[0], means[1], 100.0 * clipped_fixed);
+    EXPECT_NEAR(means[0] / means[1], 1.0, 0.01);
+    EXPECT_GT(means[0], 0.1) << "mid-grey, not black";
+    EXPECT_GT(clipped_fixed, 0.9) << "without auto exposure the sun blows the picture out";
+}
+
+// The default camera (frameBounds) frames a scene from +Z: a quad facing +Z with its left half
+// red and its right half green (as a glTF asset's front, text or logo, would be seen) shows red
+// on the image's left and green on its right, not mirrored, and its +Z face (normal +Z).
+TEST_F(Renderer, DefaultCameraSeesThePlusZFaceUnmirrored) {
+    const std::vector<Volume> volumes = furnaceVolumes(glm::vec3(1.0f));
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+    std::vector<RenderVertex> vertices;
+    std::vector<uint32_t> indices;
+    for (const float side : {-1.0f, 1.0f}) {
+        const glm::vec3 albedo =
+            side < 0.0f ? glm::vec3(0.8f, 0.0f, 0.0f) : glm::vec3(0.0f, 0.8f, 0.0f);
+        const uint32_t base = uint32_t(vertices.size());
+        const float x0 = side < 0.0f ? -1.0f : 0.0f;
+        for (const glm::vec2 c : {glm::vec2(x0, -0.5f), glm::vec2(x0 + 1.0f, -0.5f),
+                                  glm::vec2(x0 + 1.0f, 0.5f), glm::vec2(x0, 0.5f)}) {
+            vertices.push_back({glm::vec3(c, 0.0f), glm::vec3(0, 0, 1), albedo});
+        }
+        for (const uint32_t k : {0u, 1u, 2u, 0u, 2u, 3u}) {
+            indices.push_back(base + k);
+        }
+    }
+    ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+    FrameSettings settings;
+    settings.width = 80;
+    settings.height = 60;
+    const grid::Aabb bounds{glm::vec3(-1.0f, -0.5f, 0.0f), glm::vec3(1.0f, 0.5f, 0.0f)};
+    settings.camera = runtime::frameBounds(bounds, 40.0f, 80.0f / 60.0f);
+    EXPECT_GT(settings.camera.eye.z, 0.0f) << "on the +Z side";
+    settings.readbackGBuffer = true;
+    Result<Frame> frame = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(frame.ok()) << frame.error().message;
+    const Frame& f = frame.value();
+    const size_t row = size_t(settings.width) * (settings.height / 2);
+    const glm::vec4 left = f.color[row + settings.width / 4];
+    const glm::vec4 right = f.color[row + 3 * settings.width / 4];
+    EXPECT_GT(left.x, 0.5f) << "red on the left";
+    EXPECT_EQ(left.y, 0.0f);
+    EXPECT_GT(right.y, 0.5f) << "green on the right";
+    EXPECT_EQ(right.x, 0.0f);
+    EXPECT_NEAR(f.normal[row + settings.width / 4].z, 1.0f, 1e-6f) << "the +Z face";
+}
+
+// The probes view draws at most probeBudget spheres, however many probes the volume has: a dense
+// 128 x 64 x 64 volume (524,288 probes) at 160 x 120 pixels (budget 300) draws every 16th probe
+// along each axis (8 x 4 x 4 = 128 <= 300, while every 8th would be 16 x 8 x 8 = 1,024), not all; a
+// 4 x 4 x 4 one at the same size is drawn whole (stride 1).
+TEST_F(Renderer, ProbesViewDrawsWithinItsBudget) {
+    VolumeSpec spec;
+    spec.bounds = {glm::vec3(-2.0f, -1.0f, -1.0f), glm::vec3(2.0f, 1.0f, 1.0f)};
+    spec.resolution = glm::uvec3(128, 64, 64);
+    spec.order = sh::Order::L1;
+    spec.storage = Storage::Float16;
+    const std::vector<Volume> big{makeTestVolume(spec, [](glm::vec3) {
+        sh::ShRgb s;
+        s.rgb[0] = glm::vec3(1.0f);
+        return s;
+    })};
+    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), big);
+    ASSERT_TRUE(gpu.ok()) << gpu.error().message;
+    ASSERT_TRUE(renderer().setMeshes({}, {}).ok());
+    FrameSettings settings;
+    settings.width = 160;
+    settings.height = 120;
+    settings.camera = runtime::frameBounds(spec.bounds, 40.0f, 160.0f / 120.0f);
+    settings.view = RenderView::Probes;
+    Result<Frame> frame = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(frame.ok()) << frame.error().message;
+    const runtime::ProbeStats& stats = frame.value().probes;
+    std::printf("[ figures  ] probes view, 128x64x64 at 160x120: drew %llu of %llu (%llu in "
+                "view, budget %u, stride %u)\n",
+                static_cast<unsigned long long>(stats.drawn),
+                static_cast<unsigned long long>(stats.total),
+                static_cast<unsigned long long>(stats.inView), stats.budget, stats.stride);
+    EXPECT_EQ(stats.total, uint64_t(128 * 64 * 64));
+    EXPECT_EQ(stats.budget, runtime::probeBudget(160, 120));
+    EXPECT_EQ(stats.budget, 300u);
+    EXPECT_LE(stats.drawn, stats.budget);
+    EXPECT_EQ(stats.drawn, 128u);
+    EXPECT_EQ(stats.stride, 16u);
+    size_t sphere_pixels = 0;
+    for (const glm::vec4& c : frame.value().color) {
+        sphere_pixels += c.w != 0.0f ? 1 : 0;
+    }
+    EXPECT_GT(sphere_pixels, size_t(128)) << "the drawn spheres are visible";
+
+    spec.resolution = glm::uvec3(4);
+    Result<GpuVolumeSet> small = GpuVolumeSet::create(
+        context(),
+        std::vector<Volume>{makeTestVolume(spec, [](glm::vec3) { return sh::ShRgb{}; })});
+    ASSERT_TRUE(small.ok());
+    Result<Frame> whole = renderer().render(small.value(), settings);
+    ASSERT_TRUE(whole.ok());
+    EXPECT_EQ(whole.value().probes.drawn, 64u);
+    EXPECT_EQ(whole.value().probes.stride, 1u);
+}
+
+TEST_F(Renderer, RejectsBadTexturesAndTextureIndices) {
+    EXPECT_EQ(renderer().setTextures(std::vector<RgbaImage>{RgbaImage{}}).error().code,
+              ErrorCode::OutOfRange);
+    ASSERT_TRUE(
+        renderer().setTextures(std::vector<RgbaImage>{RgbaImage{1, 1, {glm::vec4(1)}}}).ok());
+    std::vector<RenderVertex> vertices(3);
+    const std::vector<uint32_t> indices{0, 1, 2};
+    EXPECT_TRUE(renderer().setMeshes(vertices, indices, std::vector<int32_t>{0}).ok());
+    EXPECT_EQ(renderer().setMeshes(vertices, indices, std::vector<int32_t>{1}).error().code,
+              ErrorCode::OutOfRange);
+    EXPECT_EQ(renderer().setMeshes(vertices, indices, std::vector<int32_t>{0, 0}).error().code,
+              ErrorCode::OutOfRange);
 }
 
 } // namespace

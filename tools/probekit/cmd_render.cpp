@@ -1,8 +1,11 @@
 // `probekit render`: the runtime's headless Vulkan renderer on a glTF scene lit by a .pvol.
 //
-// The scene is loaded here through probekit::baker and flattened to plain triangles (face
-// normals, per-vertex albedo and emission), so probekit::runtime never sees glTF; images are
-// written here with OpenImageIO, which the runtime does not link either.
+// The scene is loaded here through probekit::baker and flattened to plain triangles (the glTF
+// vertex normals, or face normals where a mesh has none; base-colour factor and uv, with the
+// scene's decoded base-colour images as the renderer's textures; per-vertex emission), so
+// probekit::runtime never sees glTF; the environment comes from --env or the .pvol's recorded
+// bake settings; images are tone mapped (runtime/tonemap.hpp) and written here with OpenImageIO,
+// which the runtime does not link either.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -21,11 +24,13 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "probekit/baker/bake.hpp"
 #include "probekit/baker/scene.hpp"
 #include "probekit/formats/pvol.hpp"
 #include "probekit/runtime/gpu_context.hpp"
 #include "probekit/runtime/gpu_volumes.hpp"
 #include "probekit/runtime/renderer.hpp"
+#include "probekit/runtime/tonemap.hpp"
 
 namespace probekit::cli {
 namespace {
@@ -41,7 +46,10 @@ struct RenderOptions {
     float fovDeg = 40.0f;
     std::vector<uint32_t> size{640, 480};
     std::string view = "shaded";
-    float exposure = 0.0f;
+    float exposure = 0.0f;      // stops, added to the automatic exposure
+    bool fixedExposure = false; // --fixed-exposure: 2^exposure alone
+    std::string cameraFrom = "+z";
+    std::optional<std::string> env; // R,G,B | FILE | none; unset = the bake's environment
     int bench = 0;
     bool directLight = false;
     float normalOffset = 0.0f;
@@ -55,10 +63,22 @@ std::string extensionOf(const std::string& path) {
     return ext;
 }
 
-// Flat triangles, each with its face normal and the material's albedo and emission at its
-// corners (textures sampled per vertex). Degenerate triangles have no normal and are skipped.
-void flatten(const baker::Scene& scene, std::vector<runtime::RenderVertex>& vertices,
-             std::vector<uint32_t>& indices) {
+// The renderer's triangles: three vertices each, with the glTF vertex normals (the face normal
+// for all three where any is missing), the base-colour factor and uv where the material has a
+// base-colour texture (sampled per pixel from `textures`, the referenced scene images) and the
+// albedo otherwise, and per-vertex emission. Degenerate triangles have no normal and are
+// skipped. Beyond the renderer's texture limit, materials fall back to albedo sampled per vertex.
+struct FlatScene {
+    std::vector<runtime::RenderVertex> vertices;
+    std::vector<uint32_t> indices;
+    std::vector<int32_t> triangleTextures;
+    std::vector<RgbaImage> textures;
+};
+
+FlatScene flatten(const baker::Scene& scene) {
+    FlatScene out;
+    std::vector<int32_t> texture_of_image(scene.images.size(), -1);
+    bool warned = false;
     const glm::vec2 corner_bary[3] = {{0.0f, 0.0f}, {1.0f, 0.0f}, {0.0f, 1.0f}};
     for (uint32_t t = 0; t < scene.triangles.size(); ++t) {
         const glm::uvec3 tri = scene.triangles[t];
@@ -69,12 +89,41 @@ void flatten(const baker::Scene& scene, std::vector<runtime::RenderVertex>& vert
         if (!(length > 0.0f) || !std::isfinite(length)) {
             continue;
         }
+        glm::vec3 n[3] = {cross / length, cross / length, cross / length};
+        if (scene.normals.size() == scene.positions.size()) {
+            const glm::vec3 given[3] = {scene.normals[tri.x], scene.normals[tri.y],
+                                        scene.normals[tri.z]};
+            if (given[0] != glm::vec3(0.0f) && given[1] != glm::vec3(0.0f) &&
+                given[2] != glm::vec3(0.0f)) {
+                std::copy(std::begin(given), std::end(given), std::begin(n));
+            }
+        }
+        const baker::Material& material = scene.materials[scene.triangleMaterial[t]];
+        int32_t texture = -1;
+        if (material.baseColorTexture >= 0) {
+            int32_t& slot = texture_of_image[size_t(material.baseColorTexture)];
+            if (slot < 0 && out.textures.size() < runtime::kMaxRenderTextures) {
+                slot = int32_t(out.textures.size());
+                out.textures.push_back(scene.images[size_t(material.baseColorTexture)]);
+            } else if (slot < 0 && !warned) {
+                std::fprintf(stderr,
+                             "probekit render: warning: more than %zu base-colour textures; the "
+                             "rest are sampled per vertex\n",
+                             runtime::kMaxRenderTextures);
+                warned = true;
+            }
+            texture = slot;
+        }
+        out.triangleTextures.push_back(texture);
         for (int k = 0; k < 3; ++k) {
-            indices.push_back(uint32_t(vertices.size()));
-            vertices.push_back({p[k], cross / length, scene.albedoAt(t, corner_bary[k]),
-                                scene.emissionAt(t, corner_bary[k])});
+            out.indices.push_back(uint32_t(out.vertices.size()));
+            const glm::vec3 albedo =
+                texture >= 0 ? material.baseColor : scene.albedoAt(t, corner_bary[k]);
+            out.vertices.push_back(
+                {p[k], n[k], albedo, scene.emissionAt(t, corner_bary[k]), scene.uvs[tri[k]]});
         }
     }
+    return out;
 }
 
 // What the default camera frames: the scene, or the volumes when the scene has no triangles.
@@ -102,28 +151,48 @@ double millisecondsSince(std::chrono::steady_clock::time_point start) {
         .count();
 }
 
-float srgbEncode(float linear) {
-    const float c = std::clamp(linear, 0.0f, 1.0f);
-    return c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
+// How a PNG maps the frame's linear values (runtime/tonemap.hpp): `ev` stops, then the ACES
+// filmic curve unless the view's colours are display values already (leak: a [0, 1] ramp).
+struct Display {
+    float ev = 0.0f;
+    bool toneMapped = true;
+};
+
+Display chooseDisplay(const RenderOptions& o, const runtime::Frame& frame) {
+    Display d;
+    d.toneMapped = o.view != "leak";
+    d.ev = o.exposure;
+    if (d.toneMapped && !o.fixedExposure) {
+        d.ev += runtime::autoExposureEv(frame.color);
+    }
+    return d;
 }
 
-// Writes RGB (scaled by 2^EV) as 8-bit sRGB PNG or float EXR, atomically: a temporary file in
-// the same directory, renamed over the target only once complete.
-bool writeImage(const std::string& path, const runtime::Frame& frame, float exposure,
-                std::string& error) {
+// Writes RGB as 8-bit sRGB PNG (Display's mapping) or float EXR (linear, scaled by 2^--exposure
+// only, so its values stay radiance or irradiance), atomically: a temporary file in the same
+// directory, renamed over the target only once complete.
+bool writeImage(const std::string& path, const runtime::Frame& frame, const RenderOptions& o,
+                const Display& display, std::string& error) {
     const std::string ext = extensionOf(path);
     const bool png = ext == ".png";
-    const float scale = std::exp2(exposure);
+    const float scale = std::exp2(o.exposure);
     const size_t pixels = size_t(frame.width) * frame.height;
-    std::vector<float> linear(pixels * 3);
+    std::vector<float> linear(png ? 0 : pixels * 3);
     std::vector<uint8_t> encoded(png ? pixels * 3 : 0);
+    const float display_scale = std::exp2(display.ev);
     for (size_t i = 0; i < pixels; ++i) {
-        for (int c = 0; c < 3; ++c) {
-            const float v = frame.color[i][c] * scale;
-            linear[3 * i + size_t(c)] = v;
-            if (png) {
-                encoded[3 * i + size_t(c)] = uint8_t(std::lround(srgbEncode(v) * 255.0f));
+        const glm::vec3 c(frame.color[i]);
+        if (!png) {
+            for (int k = 0; k < 3; ++k) {
+                linear[3 * i + size_t(k)] = c[k] * scale;
             }
+            continue;
+        }
+        const glm::vec3 shown =
+            display.toneMapped ? runtime::toneMap(c, display.ev) : c * display_scale;
+        for (int k = 0; k < 3; ++k) {
+            encoded[3 * i + size_t(k)] =
+                uint8_t(std::lround(runtime::srgbEncode(shown[k]) * 255.0f));
         }
     }
     const std::filesystem::path target(path);
@@ -182,8 +251,9 @@ Result<baker::Scene> loadScene(const RenderOptions& o) {
     return scene;
 }
 
-// The .pvol's volumes (without visibility under --no-visibility), as many as the runtime takes.
-Result<std::vector<Volume>> loadVolumes(const RenderOptions& o) {
+// The .pvol (its volumes without visibility under --no-visibility), as many volumes as the
+// runtime takes.
+Result<PvolFile> loadVolumes(const RenderOptions& o) {
     Result<PvolFile> file = readPvol(o.volumes);
     if (!file) {
         return file.error();
@@ -197,7 +267,7 @@ Result<std::vector<Volume>> loadVolumes(const RenderOptions& o) {
                                                     " volumes; the Vulkan runtime renders 1.." +
                                                     std::to_string(runtime::kMaxGpuVolumes));
     }
-    return std::move(volumes);
+    return std::move(file.value());
 }
 
 // A Vulkan context whose warnings and errors are printed.
@@ -224,26 +294,79 @@ Result<runtime::GpuVolumeSet> uploadVolumes(runtime::GpuContext& gpu,
     return set;
 }
 
-// A renderer drawing the scene's triangles.
-Result<runtime::Renderer> createRenderer(runtime::GpuContext& gpu, const baker::Scene& scene) {
-    std::vector<runtime::RenderVertex> vertices;
-    std::vector<uint32_t> indices;
-    flatten(scene, vertices, indices);
+// The environment drawn behind the geometry: --env (R,G,B constant radiance, a lat-long FILE,
+// or none), else the one the volumes were baked with as the .pvol's settings record it (none
+// when they record none, or a file that no longer loads: a warning). Both go through the bake
+// config's own parsing, so --env means here what it means to probekit bake.
+Result<Environment> chooseEnvironment(const RenderOptions& o, const BakeMetadata& metadata) {
+    nlohmann::json env;
+    std::string source;
+    if (o.env) {
+        source = "--env";
+        float rgb[3];
+        char tail;
+        if (*o.env == "none") {
+            env = {{"type", "black"}};
+        } else if (std::sscanf(o.env->c_str(), "%f,%f,%f%c", &rgb[0], &rgb[1], &rgb[2], &tail) ==
+                   3) {
+            env = {{"type", "constant"}, {"radiance", {rgb[0], rgb[1], rgb[2]}}};
+        } else {
+            env = {{"type", "latlong"}, {"file", *o.env}};
+        }
+    } else {
+        source = o.volumes + " (its recorded bake settings)";
+        const nlohmann::json recorded =
+            nlohmann::json::parse(metadata.parametersJson, nullptr, false);
+        if (!recorded.is_object() || !recorded.contains("environment")) {
+            return Environment{};
+        }
+        env = recorded["environment"];
+    }
+    Result<baker::BakeConfig> config =
+        baker::parseBakeConfig(nlohmann::json{{"environment", env}}.dump(), source);
+    if (!config) {
+        return config.error();
+    }
+    Result<Environment> loaded = baker::makeEnvironment(config.value().environment);
+    if (!loaded && !o.env) {
+        std::fprintf(stderr, "probekit render: warning: %s; the background stays black\n",
+                     loaded.error().message.c_str());
+        return Environment{};
+    }
+    return loaded;
+}
+
+// A renderer drawing the scene's triangles with their textures, in front of the environment.
+Result<runtime::Renderer> createRenderer(runtime::GpuContext& gpu, const baker::Scene& scene,
+                                         const Environment& environment) {
+    const FlatScene flat = flatten(scene);
     Result<runtime::Renderer> renderer = runtime::Renderer::create(gpu);
     if (!renderer) {
         return renderer;
     }
-    if (auto r = renderer.value().setMeshes(vertices, indices); !r) {
+    if (auto r = renderer.value().setTextures(flat.textures); !r) {
+        return r.error();
+    }
+    if (auto r = renderer.value().setMeshes(flat.vertices, flat.indices, flat.triangleTextures);
+        !r) {
+        return r.error();
+    }
+    if (auto r = renderer.value().setEnvironment(environment); !r) {
         return r.error();
     }
     return renderer;
 }
 
-// --camera's eye and target, or (without it) the framed box seen along +Z.
+// --camera's eye and target, or (without it) the framed box seen from --camera-from's side
+// (+z: glTF assets face +Z).
 Result<runtime::Camera> chooseCamera(const RenderOptions& o, const grid::Aabb& framed,
                                      float aspect) {
     if (o.camera.empty()) {
-        return runtime::frameBounds(framed, o.fovDeg, aspect);
+        const glm::vec3 axis = o.cameraFrom[1] == 'x'   ? glm::vec3(1, 0, 0)
+                               : o.cameraFrom[1] == 'y' ? glm::vec3(0, 1, 0)
+                                                        : glm::vec3(0, 0, 1);
+        return runtime::frameBounds(framed, o.fovDeg, aspect,
+                                    o.cameraFrom[0] == '-' ? -axis : axis);
     }
     runtime::Camera camera;
     camera.eye = glm::vec3(o.camera[0], o.camera[1], o.camera[2]);
@@ -308,6 +431,7 @@ struct FrameTimes {
     std::vector<double> gbufferMs;
     std::vector<double> shadeMs[2];
     std::vector<double> fetchOnlyMs[2];
+    runtime::ProbeStats probes; // the probes and validity views' selection
 };
 
 Result<FrameTimes> timeFrames(runtime::Renderer& renderer,
@@ -339,6 +463,7 @@ Result<FrameTimes> timeFrames(runtime::Renderer& renderer,
                     frame.value().timings.shadeMs);
                 if (!fetch_only && k == 0) {
                     out.gbufferMs.push_back(frame.value().timings.gbufferMs);
+                    out.probes = frame.value().probes;
                 }
             }
         }
@@ -414,6 +539,13 @@ nlohmann::json benchReport(const RenderOptions& o, const runtime::FrameSettings&
                             {"memcpy_gb_per_s", double(run.uploads.bytes) / (copy * 1e6)},
                             {"upload_over_memcpy", upload / copy},
                             {"visibility", run.visibility}};
+    if (run.frames.probes.budget > 0) {
+        bench["probes_total"] = run.frames.probes.total;
+        bench["probes_in_view"] = run.frames.probes.inView;
+        bench["probes_drawn"] = run.frames.probes.drawn;
+        bench["probe_budget"] = run.frames.probes.budget;
+        bench["probe_stride"] = run.frames.probes.stride;
+    }
     if (run.visibility) {
         const double plain_shade = median(run.frames.shadeMs[1]);
         const double plain_fetch = median(run.frames.fetchOnlyMs[1]);
@@ -473,17 +605,31 @@ int renderAndWrite(const RenderOptions& o, const runtime::GpuContext& gpu,
         return fail(frame.error().message);
     }
     std::string error;
-    if (!writeImage(o.output, frame.value(), o.exposure, error)) {
+    const Display display = chooseDisplay(o, frame.value());
+    if (!writeImage(o.output, frame.value(), o, display, error)) {
         return fail(o.output + ": " + error);
     }
     if (bench) {
         std::printf("%s\n", bench->dump().c_str());
-    } else {
-        std::printf("wrote %s: %ux%u, %s view, %zu volume%s on %s; G-buffer %.2f ms, shading "
-                    "%.2f ms\n",
-                    o.output.c_str(), settings.width, settings.height, o.view.c_str(), volume_count,
-                    volume_count == 1 ? "" : "s", gpu.deviceInfo().name.c_str(),
-                    frame.value().timings.gbufferMs, frame.value().timings.shadeMs);
+        return kExitOk;
+    }
+    std::printf("wrote %s: %ux%u, %s view, %zu volume%s on %s; G-buffer %.2f ms, shading "
+                "%.2f ms\n",
+                o.output.c_str(), settings.width, settings.height, o.view.c_str(), volume_count,
+                volume_count == 1 ? "" : "s", gpu.deviceInfo().name.c_str(),
+                frame.value().timings.gbufferMs, frame.value().timings.shadeMs);
+    if (extensionOf(o.output) == ".png") {
+        std::printf("  display: %s, exposure %+.2f EV (%s)\n",
+                    display.toneMapped ? "ACES filmic" : "no tone curve", double(display.ev),
+                    o.fixedExposure || !display.toneMapped ? "fixed" : "auto + --exposure");
+    }
+    const runtime::ProbeStats& p = frame.value().probes;
+    if (p.budget > 0) {
+        std::printf("  probes: drew %llu of %llu (%llu in view; budget %u, every %u%s)\n",
+                    static_cast<unsigned long long>(p.drawn),
+                    static_cast<unsigned long long>(p.total),
+                    static_cast<unsigned long long>(p.inView), p.budget, p.stride,
+                    p.stride == 1 ? "" : " along each lattice axis");
     }
     return kExitOk;
 }
@@ -493,40 +639,46 @@ int runRender(const RenderOptions& o) {
     if (!scene) {
         return fail(scene.error().message);
     }
-    Result<std::vector<Volume>> volumes = loadVolumes(o);
-    if (!volumes) {
-        return fail(volumes.error().message);
+    Result<PvolFile> file = loadVolumes(o);
+    if (!file) {
+        return fail(file.error().message);
     }
+    const std::vector<Volume>& volumes = file.value().volumes;
+    const BakeMetadata& metadata = file.value().metadata;
     Result<std::unique_ptr<runtime::GpuContext>> context = createContext();
     if (!context) {
         return fail(context.error().message);
     }
     runtime::GpuContext& gpu = *context.value();
     const auto upload_start = std::chrono::steady_clock::now();
-    Result<runtime::GpuVolumeSet> set = uploadVolumes(gpu, volumes.value(), o);
+    Result<runtime::GpuVolumeSet> set = uploadVolumes(gpu, volumes, o);
     if (!set) {
         return fail(set.error().message);
     }
     const double create_ms = millisecondsSince(upload_start);
-    Result<runtime::Renderer> renderer = createRenderer(gpu, scene.value());
+    Result<Environment> environment = chooseEnvironment(o, metadata);
+    if (!environment) {
+        return fail(environment.error().message);
+    }
+    Result<runtime::Renderer> renderer = createRenderer(gpu, scene.value(), environment.value());
     if (!renderer) {
         return fail(renderer.error().message);
     }
-    Result<runtime::FrameSettings> settings = frameSettings(o, scene.value(), volumes.value());
+    Result<runtime::FrameSettings> settings = frameSettings(o, scene.value(), volumes);
     if (!settings) {
         return fail(settings.error().message);
     }
     std::optional<nlohmann::json> bench;
     if (o.bench > 0) {
-        Result<nlohmann::json> report = runBench(o, gpu, renderer.value(), set.value(),
-                                                 volumes.value(), settings.value(), create_ms);
+        Result<nlohmann::json> report =
+            runBench(o, gpu, renderer.value(), set.value(), volumes, settings.value(), create_ms);
         if (!report) {
             return fail(report.error().message);
         }
         bench = std::move(report.value());
     }
-    return renderAndWrite(o, gpu, renderer.value(), set.value(), settings.value(),
-                          volumes.value().size(), bench);
+    return renderAndWrite(o, gpu, renderer.value(), set.value(), settings.value(), volumes.size(),
+                          bench);
 }
 
 } // namespace
@@ -545,10 +697,16 @@ void addRenderCommand(CLI::App& app, Command& selected) {
                                                   : "the output must end in .png or .exr";
         });
     cmd->add_option("--camera", o->camera,
-                    "eye_x,eye_y,eye_z,at_x,at_y,at_z in metres (default: frame the scene, "
-                    "looking along +Z)")
+                    "eye_x,eye_y,eye_z,at_x,at_y,at_z in metres (default: frame the scene from "
+                    "the --camera-from side)")
         ->delimiter(',')
         ->expected(6);
+    cmd->add_option("--camera-from", o->cameraFrom,
+                    "without --camera: the side of the scene's box the default camera frames it "
+                    "from, looking back at its centre (+z: glTF assets face +Z, so their front "
+                    "and text read unmirrored; the bundled Cornell box opens towards -z)")
+        ->check(CLI::IsMember({"+x", "-x", "+y", "-y", "+z", "-z"}))
+        ->capture_default_str();
     cmd->add_option("--fov", o->fovDeg, "vertical field of view, degrees")
         ->check(CLI::Range(1.0f, 170.0f))
         ->capture_default_str();
@@ -566,8 +724,17 @@ void addRenderCommand(CLI::App& app, Command& selected) {
                     "without visibility data)")
         ->check(CLI::IsMember({"shaded", "irradiance", "probes", "validity", "leak"}))
         ->capture_default_str();
-    cmd->add_option("--exposure", o->exposure, "scale by 2^EV before writing")
+    cmd->add_option("--exposure", o->exposure,
+                    "stops added to the exposure: PNG scales by 2^(auto EV + EV) before the ACES "
+                    "filmic curve (auto EV brings the log-average luminance to 0.18); EXR is "
+                    "linear, scaled by 2^EV alone")
         ->capture_default_str();
+    cmd->add_flag("--fixed-exposure", o->fixedExposure,
+                  "no automatic exposure: PNG scales by 2^EV alone before the tone curve");
+    cmd->add_option("--env", o->env,
+                    "background where no geometry is (shaded and probes views): constant "
+                    "radiance R,G,B (W/sr/m^2), a lat-long image FILE, or none (default: the "
+                    "environment the volumes were baked with, from the .pvol's settings)");
     cmd->add_option("--bench", o->bench,
                     "after warm-up, time N frames of the shading pass and of its fetch-only "
                     "floor, and the volume upload; print one JSON line. Volumes with visibility "

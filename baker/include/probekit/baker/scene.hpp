@@ -20,22 +20,18 @@
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
 
+#include "probekit/formats/environment.hpp"
 #include "probekit/formats/grid.hpp"
 #include "probekit/formats/light.hpp"
 #include "probekit/formats/result.hpp"
 
 namespace probekit::baker {
 
-// A linear-light RGBA float image. Row 0 is the top of the image (glTF uv (0, 0) is the
-// top-left corner; lat-long row 0 is +Y).
-struct Image {
-    uint32_t width = 0;
-    uint32_t height = 0;
-    std::vector<glm::vec4> texels; // width * height, row-major
-
-    // Bilinear lookup with repeat wrapping at glTF uv (u right, v down).
-    glm::vec4 sampleBilinear(glm::vec2 uv) const;
-};
+// Linear RGBA images and the environment are shared with the runtime renderer, so they are
+// defined in formats (formats/include/probekit/formats/environment.hpp, which also documents the
+// lat-long mapping).
+using Image = RgbaImage;
+using Environment = probekit::Environment;
 
 struct Material {
     std::string name;
@@ -46,28 +42,6 @@ struct Material {
     int baseColorTexCoord = 0; // which TEXCOORD_n set (only 0 is loaded; others warn)
 
     bool isEmissive() const { return emission.x > 0 || emission.y > 0 || emission.z > 0; }
-};
-
-// Radiance arriving from infinitely far away in direction `dir` (pointing away from the scene).
-//
-// Lat-long mapping (documented here once): image column u in [0, 1) left to right and row v in
-// [0, 1) top to bottom map to the world direction (before rotation)
-//     phi = 2 pi u, theta = pi v,
-//     dir = (sin theta sin phi, cos theta, -sin theta cos phi)
-// so the top row is +Y, the bottom row -Y, the image centre (u = 0.5) looks along +Z, and the
-// left/right edge (u = 0) along -Z. `rotationDeg` then turns the map about +Y
-// (counter-clockwise seen from above, right-handed), and `intensity` scales it.
-struct Environment {
-    enum class Type : uint8_t { Constant, LatLong };
-    Type type = Type::Constant;
-    glm::vec3 constant{0.0f}; // W/(sr m^2), used when type == Constant
-    Image image;              // linear radiance, used when type == LatLong
-    float intensity = 1.0f;
-    float rotationDeg = 0.0f;
-    std::string source; // file name, for messages
-
-    glm::vec3 radiance(glm::vec3 dir) const;
-    bool isBlack() const;
 };
 
 // Loads an environment from a lat-long HDR/EXR (OpenImageIO). Errors name the file.
@@ -86,7 +60,11 @@ struct SceneNode {
 struct Scene {
     // Triangles, world space.
     std::vector<glm::vec3> positions;
-    std::vector<glm::vec2> uvs;             // one per position (zero when the mesh has none)
+    std::vector<glm::vec2> uvs; // one per position (zero when the mesh has none)
+    // One per position: the glTF NORMAL in world space (transformed by the inverse transpose of
+    // the node's matrix), unit length; zero where the mesh has none. Scenes built in code may
+    // leave it empty. The light transport uses face normals; the renderer shades with these.
+    std::vector<glm::vec3> normals;
     std::vector<glm::uvec3> triangles;      // indices into positions
     std::vector<uint32_t> triangleMaterial; // per triangle, index into materials
     std::vector<int32_t> triangleNode;      // per triangle, index into nodes
