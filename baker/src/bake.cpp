@@ -592,7 +592,7 @@ BrickedSettings brickedSettings(const BakeRun& run, const VolumeConfig& vc) {
     bs.maxLevel = vc.maxLevel;
     bs.refineError = vc.refineError;
     bs.budgetBytes = run.config.maxMemoryBytes;
-    bs.workingBytes = run.config.maxMemoryBytes;
+    bs.workingBytes = std::max(run.config.maxMemoryBytes, kMinWorkingBytes);
     bs.dilate = run.config.dilate;
     bs.tracer = &run.tracer;
     bs.nudge = run.config.nudge;

@@ -27,6 +27,9 @@ using ProbeBatchFn =
 // probes peaked at 369 MiB, 4.99 M at 2,845 MiB and 6.73 M at 4,357 MiB (520 to 910 B per probe
 // above a ~250 MiB base that holds the scene and its BVH).
 constexpr uint64_t kBakedProbeBytes = 1024;
+// That base cannot be bargained away: below this working limit max_memory_mb bounds only the
+// bricked volumes' GPU bytes (refinement is then limited by kMinWorkingBytes).
+constexpr uint64_t kMinWorkingBytes = 256ull << 20;
 
 struct BrickedSettings {
     uint32_t maxLevel = 2;
