@@ -609,6 +609,7 @@ void addBrickedOutcome(const BrickedOutcome& b, BakeResult& result) {
     }
     result.stats.refineCandidates += b.refineCandidates;
     result.stats.budgetDropped += b.budgetDropped;
+    result.stats.memoryUntested += b.memoryUntested;
     result.stats.budgetError = std::max(result.stats.budgetError, b.budgetError);
     result.stats.predictedInterpolationError =
         std::max(result.stats.predictedInterpolationError, b.predictedError);

@@ -4,6 +4,7 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 
 #include "irradiance_error.hpp"
 #include "parallel.hpp"
@@ -206,7 +207,8 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
     constexpr double kInterpolatedVariance = 8.0 / 27.0;
     const double wanted = double(kPilotSamples) * choice.pilotNoise * choice.pilotNoise *
                           kInterpolatedVariance / (noise_budget * noise_budget);
-    choice.samples = uint32_t(std::clamp(std::ceil(wanted), 8.0, double(1u << 16)));
+    choice.samples = uint32_t(
+        std::clamp(std::ceil(wanted), double(kTargetMinSamples), double(kTargetMaxSamples)));
     choice.predictedNoise = choice.pilotNoise * std::sqrt(double(kPilotSamples) / choice.samples *
                                                           kInterpolatedVariance);
     choice.interpolationBudget = std::sqrt(std::max(
@@ -233,6 +235,30 @@ double predictError(const TargetChoice& choice, const BakeStats& stats) {
     const double sh_error = choice.shOrder == sh::Order::L1 ? choice.band2 : 0.0;
     return std::sqrt(stats.predictedInterpolationError * stats.predictedInterpolationError +
                      choice.predictedNoise * choice.predictedNoise + sh_error * sh_error);
+}
+
+std::string explainError(const TargetChoice& choice, const BakeStats& stats) {
+    const double sh_error = choice.shOrder == sh::Order::L1 ? choice.band2 : 0.0;
+    const double interpolation = stats.predictedInterpolationError;
+    const double noise = choice.predictedNoise;
+    char text[400];
+    if (interpolation >= noise && interpolation >= sh_error) {
+        const char* limit = stats.memoryUntested > 0
+                                ? "max_memory_mb's working memory left candidate bricks unrefined"
+                            : stats.budgetDropped > 0
+                                ? "max_memory_mb's GPU budget dropped finer bricks"
+                                : "refinement stopped at the deepest level (3)";
+        std::snprintf(text, sizeof text, "interpolation %.3g is the largest term (budget %.3g): %s",
+                      interpolation, choice.interpolationBudget, limit);
+    } else if (noise >= sh_error) {
+        std::snprintf(text, sizeof text,
+                      "noise %.3g is the largest term at %u directions per probe%s", noise,
+                      choice.samples, choice.samples >= kTargetMaxSamples ? " (the cap)" : "");
+    } else {
+        std::snprintf(text, sizeof text, "SH band 2 %.3g, dropped by L1, is the largest term",
+                      sh_error);
+    }
+    return text;
 }
 
 } // namespace probekit::baker

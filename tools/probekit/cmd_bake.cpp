@@ -363,6 +363,32 @@ Result<void> runVerify(const BakeOptionsCli& o, const baker::Scene& scene,
     return {};
 }
 
+// --target-error fails the command when its own prediction, or --verify's measurement, is more
+// than kTargetTolerance x the target: the message says which and what bound the error.
+std::string targetMissed(const baker::TargetChoice& choice, const baker::BakeStats& stats,
+                         const nlohmann::json& report) {
+    const double limit = baker::kTargetTolerance * choice.target;
+    const double predicted = baker::predictError(choice, stats);
+    char text[640];
+    if (report.contains("verify") && report["verify"]["rel_rmse"].get<double>() > limit) {
+        std::snprintf(text, sizeof text,
+                      "target_error: --verify measured %.3g, more than %.3g x the target %.3g "
+                      "(predicted %.3g; %s)",
+                      report["verify"]["rel_rmse"].get<double>(), baker::kTargetTolerance,
+                      choice.target, predicted, baker::explainError(choice, stats).c_str());
+        return text;
+    }
+    if (predicted > limit) {
+        std::snprintf(text, sizeof text,
+                      "target_error: the predicted error %.3g is more than %.3g x the target %.3g "
+                      "(%s)",
+                      predicted, baker::kTargetTolerance, choice.target,
+                      baker::explainError(choice, stats).c_str());
+        return text;
+    }
+    return {};
+}
+
 Result<baker::BakeResult> bakeWithProgress(const BakeOptionsCli& o, const baker::Scene& scene,
                                            const baker::BakeConfig& config) {
     baker::BakeOptions options;
@@ -436,10 +462,19 @@ int runBake(const BakeOptionsCli& o) {
             return fail(v.error(), "--verify: ");
         }
     }
+    const std::string missed = choice ? targetMissed(*choice, result.value().stats, report) : "";
+    if (!missed.empty()) {
+        report["target_missed"] = missed;
+    }
     if (!o.report.empty()) {
         if (auto w = writeFileAtomic(o.report, report.dump(2) + "\n"); !w) {
             return fail(w.error(), "--report: ");
         }
+    }
+    if (!missed.empty()) {
+        std::fprintf(stderr, "probekit bake: %s (%s is written, for inspection)\n", missed.c_str(),
+                     o.output.c_str());
+        return kExitFailure;
     }
     return kExitOk;
 }

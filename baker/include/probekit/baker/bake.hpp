@@ -288,6 +288,7 @@ struct BakeStats {
     uint64_t nudgedProbes = 0;                 // box-face probes baked just inside the box
     uint64_t refineCandidates = 0;             // bricks whose finer probes were baked to test them
     uint64_t budgetDropped = 0;                // finer bricks removed by max_memory_mb
+    uint64_t memoryUntested = 0; // candidate bricks not refined: the working memory was full
     // Largest disagreement (fraction of RMS irradiance) of a refinement the budget removed:
     // the error the budget cost where it cost most. 0 when the budget did not bind.
     double budgetError = 0.0;
@@ -358,6 +359,12 @@ struct TargetChoice {
     double pilotSeconds = 0.0;
 };
 // The error budget of chooseSettings, as fractions of the target t.
+constexpr double kTargetTolerance = 1.5; // probekit bake fails when predicted or measured is more
+// Fewest directions per probe chooseSettings gives: L2 SH has 9 coefficients per channel, and
+// below ~14 directions per coefficient a probe is noise wherever the 64 pilot points missed a
+// light feature (8 directions, the old floor, baked a grainy millimetre engine).
+constexpr uint32_t kTargetMinSamples = 128;
+constexpr uint32_t kTargetMaxSamples = 1u << 16;
 constexpr double kTargetNoiseShare = 0.6;       // interpolated Monte Carlo noise
 constexpr double kTargetBand2Share = 0.4;       // SH band 2 may be dropped (L1) below this
 constexpr double kTargetMinInterpolation = 0.2; // interpolation's share never falls below this
@@ -378,5 +385,9 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
 // Predicted error of a bake made with `choice`: interpolation (BakeStats), noise and band 2
 // combined in quadrature.
 double predictError(const TargetChoice& choice, const BakeStats& stats);
+
+// Which term of predictError is largest and what limit held it there (the sample cap, the
+// deepest level, max_memory_mb's GPU budget or working memory, SH order L1), in a sentence.
+std::string explainError(const TargetChoice& choice, const BakeStats& stats);
 
 } // namespace probekit::baker
