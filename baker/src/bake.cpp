@@ -19,6 +19,7 @@
 #include "parallel.hpp"
 #include "path_integrator.hpp"
 #include "probekit/baker/bake.hpp"
+#include "probekit/baker/scene_summary.hpp"
 #include "probekit/baker/settings.hpp"
 #include "ray_tracer.hpp"
 #include "visibility.hpp"
@@ -593,7 +594,7 @@ void finishStats(const BakeRun& run, const MethodState& method, BakeStats& stats
 // The metadata records what was actually baked: the resolved resolution of every volume and
 // the method's resolved settings.
 BakeMetadata bakeMetadata(const BakeRun& run, const std::vector<VolumeDesc>& descs,
-                          const MethodState& method, double seconds) {
+                          const MethodState& method) {
     const BakeConfig& config = run.config;
     BakeMetadata m;
     m.toolVersion = "probekit " PROBEKIT_VERSION_STRING;
@@ -612,7 +613,9 @@ BakeMetadata bakeMetadata(const BakeRun& run, const std::vector<VolumeDesc>& des
     m.parametersJson = describeConfig(resolved);
     m.seed = config.seed;
     m.sceneHash = run.scene.sourceHash;
-    m.bakeSeconds = seconds;
+    // Wall time stays out of the file so that the same input gives the same bytes
+    // (ARCHITECTURE.md: output is deterministic); BakeStats::seconds carries it.
+    m.bakeSeconds = 0.0;
     return m;
 }
 
@@ -622,6 +625,11 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     const auto start = std::chrono::steady_clock::now();
     if (Result<void> valid = validateBakeConfig(config); !valid) {
         return valid.error();
+    }
+    // An unlit scene bakes to zeros by construction: an error, not a file of zeros in silence.
+    Result<void> lit = checkSceneLit(scene);
+    if (!lit && !options.allowUnlit) {
+        return lit.error();
     }
     Result<std::vector<VolumeDesc>> descs = resolveVolumes(scene, config);
     if (!descs) {
@@ -634,6 +642,9 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     BakeRun run{scene, config, options, *tracer.value(), start, resolveThreads(options.threads)};
     BakeResult result;
     result.stats.threads = run.threads;
+    if (!lit) {
+        result.warnings.push_back(lit.error().message);
+    }
     const MethodState method = prepareMethod(run, descs.value(), result.stats);
     const std::vector<VolumeConfig> volume_configs = volumeConfigs(config);
     for (uint32_t vi = 0; vi < descs.value().size(); ++vi) {
@@ -646,7 +657,7 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     }
     run.report();
     finishStats(run, method, result.stats);
-    result.file.metadata = bakeMetadata(run, descs.value(), method, result.stats.seconds);
+    result.file.metadata = bakeMetadata(run, descs.value(), method);
     return result;
 }
 
