@@ -200,36 +200,34 @@ void printMethod(const BakeOptionsCli& o, const baker::Scene& scene,
     const auto seed = static_cast<unsigned long long>(config.seed);
     if (config.method == baker::Method::Vpl) {
         const baker::VplConfig v = baker::resolveVplConfig(scene, placed, config);
-        std::printf(
-            "baking %s: method vpl, seed %llu\n"
-            "  direct light: %u directions per probe (vpl.direct_samples)\n"
-            "  %u VPLs requested%s, %u bounces, %s sampling, clamp %s (%.4f m%s), near field "
-            "%.4f m%s, shadows %s, cut error %g\n",
-            o.scene.c_str(), seed, v.directSamples, *v.count,
-            config.vpl.count ? ""
-                             : " (auto: 4 x surface area / probe spacing^2, "
-                               "power of two in 16384..65536)",
-            v.bounces, std::string(baker::toString(v.sampling)).c_str(),
-            std::string(baker::toString(v.clamp)).c_str(), *v.clampDistance,
-            config.vpl.clampDistance ? "" : ", auto: 2 sqrt(area / (pi count))", *v.nearField,
-            config.vpl.nearField ? "" : " (auto: 2 x clamp distance)", v.shadows ? "on" : "off",
-            double(v.cutError));
+        std::printf("baking %s: method vpl, seed %llu\n"
+                    "  direct light: %u directions per probe (vpl.direct_samples)\n"
+                    "  %u VPLs%s, %u bounces, %s sampling, clamp %s (%.4f m%s), near field "
+                    "%.4f m%s, shadows %s, cut error %g\n",
+                    o.scene.c_str(), seed, v.directSamples, *v.count,
+                    config.vpl.count ? " requested"
+                                     : " requested (auto: 4 x surface area / probe spacing^2, "
+                                       "power of two in 16384..65536)",
+                    v.bounces, std::string(baker::toString(v.sampling)).c_str(),
+                    std::string(baker::toString(v.clamp)).c_str(), *v.clampDistance,
+                    config.vpl.clampDistance ? "" : ", auto: 2 sqrt(area / (pi count))",
+                    *v.nearField, config.vpl.nearField ? "" : " (auto: 2 x clamp distance)",
+                    v.shadows ? "on" : "off", double(v.cutError));
     } else if (config.method == baker::Method::Lpv) {
         const baker::LpvConfig& l = config.lpv;
         const std::string direct = l.direct == baker::LpvDirect::Traced
                                        ? "traced, " + std::to_string(l.directSamples) +
                                              " directions per probe (lpv.direct_samples)"
                                        : "propagated through the grids";
-        std::printf(
-            "baking %s: method lpv, seed %llu\n"
-            "  direct light: %s\n"
-            "  %u VPLs requested, %u cascade(s) of %u cells on the longest axis (ratio %g), %u "
-            "iterations%s, occlusion %s, propagation weight %g, fade %g cells, "
-            "intensity %g\n",
-            o.scene.c_str(), seed, direct.c_str(), l.vplCount, l.cascades, l.grid,
-            double(l.cascadeRatio), l.iterations ? *l.iterations : l.grid,
-            l.iterations ? "" : " (auto: = grid)", l.occlusion ? "on" : "off",
-            double(l.propagationWeight), double(l.fadeCells), double(l.intensity));
+        std::printf("baking %s: method lpv, seed %llu\n"
+                    "  direct light: %s\n"
+                    "  %u VPLs requested, %u cascade(s) of %u cells on the longest axis "
+                    "(ratio %g), %u iterations%s, occlusion %s, propagation weight %g, fade %g "
+                    "cells, intensity %g\n",
+                    o.scene.c_str(), seed, direct.c_str(), l.vplCount, l.cascades, l.grid,
+                    double(l.cascadeRatio), l.iterations ? *l.iterations : l.grid,
+                    l.iterations ? "" : " (auto: = grid)", l.occlusion ? "on" : "off",
+                    double(l.propagationWeight), double(l.fadeCells), double(l.intensity));
     } else {
         std::printf("baking %s: method path, %u samples, %u bounces, seed %llu\n", o.scene.c_str(),
                     config.path.samples, config.path.maxBounces, seed);
