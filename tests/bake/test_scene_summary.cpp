@@ -33,12 +33,7 @@ Scene loadGenerated(const std::string& name, const std::string& folder) {
 }
 
 BakeConfig tinyBake() {
-    BakeConfig c;
-    c.path.samples = 16;
-    VolumeConfig v;
-    v.resolution = glm::uvec3(2, 2, 2);
-    c.volumes = {v};
-    return c;
+    return test::sceneVolume(16, glm::uvec3(2, 2, 2));
 }
 
 } // namespace

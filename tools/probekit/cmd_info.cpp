@@ -193,15 +193,8 @@ bool isSceneFile(const std::filesystem::path& path) {
 }
 
 const char* lightTypeName(LightType type) {
-    switch (type) {
-    case LightType::Point:
-        return "point";
-    case LightType::Spot:
-        return "spot";
-    case LightType::Directional:
-        break;
-    }
-    return "directional";
+    constexpr const char* kNames[] = {"point", "spot", "directional"}; // LightType's order
+    return kNames[size_t(type)];
 }
 
 nlohmann::json describeLight(const baker::LightSummary& l) {
