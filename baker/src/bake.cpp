@@ -19,6 +19,7 @@
 #include "parallel.hpp"
 #include "path_integrator.hpp"
 #include "probekit/baker/bake.hpp"
+#include "probekit/baker/scene_summary.hpp"
 #include "probekit/baker/settings.hpp"
 #include "ray_tracer.hpp"
 #include "visibility.hpp"
@@ -691,8 +692,7 @@ void finishStats(const BakeRun& run, const MethodState& method, BakeStats& stats
 
 // The metadata records what was actually baked: the resolved resolution of every volume and
 // the method's resolved settings.
-BakeMetadata bakeMetadata(const BakeRun& run, const VolumePlan& plan, const MethodState& method,
-                          double seconds) {
+BakeMetadata bakeMetadata(const BakeRun& run, const VolumePlan& plan, const MethodState& method) {
     const std::vector<VolumeDesc>& descs = plan.volumes;
     const BakeConfig& config = run.config;
     BakeMetadata m;
@@ -713,7 +713,9 @@ BakeMetadata bakeMetadata(const BakeRun& run, const VolumePlan& plan, const Meth
     m.parametersJson = describeConfig(resolved);
     m.seed = config.seed;
     m.sceneHash = run.scene.sourceHash;
-    m.bakeSeconds = seconds;
+    // Wall time stays out of the file so that the same input gives the same bytes
+    // (ARCHITECTURE.md: output is deterministic); BakeStats::seconds carries it.
+    m.bakeSeconds = 0.0;
     return m;
 }
 
@@ -730,6 +732,11 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
                              " m per scene unit, but the scene was loaded with " +
                              std::to_string(scene.unitScale) + " (LoadOptions::scale)");
     }
+    // An unlit scene bakes to zeros by construction: an error, not a file of zeros in silence.
+    Result<void> lit = checkSceneLit(scene);
+    if (!lit && !options.allowUnlit) {
+        return lit.error();
+    }
     Result<VolumePlan> plan = planVolumes(scene, config);
     if (!plan) {
         return plan.error();
@@ -743,6 +750,9 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     BakeResult result;
     result.warnings = plan.value().notes;
     result.stats.threads = run.threads;
+    if (!lit) {
+        result.warnings.push_back(lit.error().message);
+    }
     const MethodState method = prepareMethod(run, descs, result.stats);
     const std::vector<VolumeConfig> volume_configs = volumeConfigs(config);
     for (uint32_t vi = 0; vi < descs.size(); ++vi) {
@@ -754,7 +764,7 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     }
     run.report();
     finishStats(run, method, result.stats);
-    result.file.metadata = bakeMetadata(run, plan.value(), method, result.stats.seconds);
+    result.file.metadata = bakeMetadata(run, plan.value(), method);
     return result;
 }
 

@@ -211,6 +211,7 @@ public:
     Scene load(std::optional<int> scene_index, uint64_t source_hash,
                const std::string& tinygltf_warnings) {
         m_scene.sourceHash = source_hash;
+        m_scene.source = m_file;
         std::istringstream lines(tinygltf_warnings);
         for (std::string line; std::getline(lines, line);) {
             if (!trimmed(line).empty()) {
@@ -1019,6 +1020,8 @@ private:
             light.direction = glm::vec3(direction / length);
         }
         m_scene.lights.push_back(std::move(light));
+        m_scene.gltfLights.push_back(
+            GltfLight{light_index, glm::vec3(colour), static_cast<float>(source.intensity)});
     }
 
     const tinygltf::Model& m_model;

@@ -159,18 +159,9 @@ public:
 
         for (uint32_t i = 0; i < uint32_t(scene.lights.size()); ++i) {
             const PunctualLight& light = scene.lights[i];
-            double solid_angle = 0.0;
-            switch (light.type) {
-            case LightType::Point:
-                solid_angle = 4.0 * std::numbers::pi;
-                break;
-            case LightType::Spot:
-                solid_angle = SpotProfile(light).solidAngle();
-                break;
-            case LightType::Directional:
-                solid_angle = disc_area; // W/m^2 x m^2
-                break;
-            }
+            const double solid_angle = light.type == LightType::Directional
+                                           ? disc_area // W/m^2 x m^2
+                                           : punctualSolidAngle(light);
             addSource(Source::Kind::Punctual, i, luminance(light.intensity) * solid_angle);
         }
         if (m_sampler.hasEmitters()) {
@@ -384,6 +375,18 @@ private:
 };
 
 } // namespace
+
+double punctualSolidAngle(const PunctualLight& light) {
+    switch (light.type) {
+    case LightType::Point:
+        return 4.0 * std::numbers::pi;
+    case LightType::Spot:
+        return SpotProfile(light).solidAngle();
+    case LightType::Directional:
+        break;
+    }
+    return 0.0;
+}
 
 VplPathSampler::VplPathSampler(VplSampling mode, uint64_t seed, uint32_t path_count)
     : m_mode(mode), m_seed(seed), m_pathCount(path_count) {

@@ -74,6 +74,11 @@ constexpr uint32_t kVplMaxPathsPerVpl = 64;
 VplSet traceVpls(const Scene& scene, const RayTracer& tracer, const VplPathSettings& settings,
                  uint64_t seed);
 
+// The solid angle a point or spot light shines into, weighted by its falloff, sr: 4 pi for a
+// point light, the integral of the glTF cone falloff above for a spot; 0 for a directional
+// light. Its power is its intensity (W/sr) times this.
+double punctualSolidAngle(const PunctualLight& light);
+
 // The uniforms that start light path `index` of `path_count` (light choice, point on the
 // light, direction, environment pixel): kVplPathDimensions numbers in [0, 1).
 //  * Random: independent (rng.hpp, keyed by seed and index).

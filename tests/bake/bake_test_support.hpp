@@ -41,6 +41,17 @@ inline baker::Scene generatedScene(const std::string& name) {
     return loadOrFail(file);
 }
 
+// One dense volume of `resolution` probes over the whole scene, `samples` path directions per
+// probe, every other setting at its default.
+inline baker::BakeConfig sceneVolume(uint32_t samples, glm::uvec3 resolution) {
+    baker::BakeConfig c;
+    c.path.samples = samples;
+    baker::VolumeConfig v;
+    v.resolution = resolution;
+    c.volumes = {v};
+    return c;
+}
+
 // One 1x1x1 centre-mode float volume per point (a box of +-half_extent), so each probe sits
 // exactly at its point.
 inline baker::BakeConfig probesAt(const std::vector<glm::vec3>& points, float half_extent) {

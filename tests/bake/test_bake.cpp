@@ -265,11 +265,7 @@ TEST(BakeDeterminism, BitIdenticalForOneAndTwoThreads) {
     const auto dir = test::tempDir("determinism");
     ASSERT_TRUE(writeGeneratedScene("cornell", dir / "cornell.gltf").ok());
     Scene scene = test::loadOrFail(dir / "cornell.gltf");
-    BakeConfig c;
-    c.path.samples = 64;
-    VolumeConfig v;
-    v.resolution = glm::uvec3(4, 4, 2);
-    c.volumes = {v};
+    BakeConfig c = test::sceneVolume(64, glm::uvec3(4, 4, 2));
     BakeOptions one;
     one.threads = 1;
     BakeOptions two;

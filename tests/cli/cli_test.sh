@@ -63,8 +63,11 @@ expect 0 "bricked, 2x2x2 level-0 bricks" -- "$pk" info bricked.pvol
 expect 0 "valid \(1 volume" -- "$pk" validate bricked.pvol
 printf 'x,y,z,nx,ny,nz\n0.2,0.2,0.2,0,1,0\n' >points.csv
 expect 0 "^x,y,z,nx,ny,nz,r,g,b" -- "$pk" sample bricked.pvol --points points.csv
-expect 0 "verify: measured error" -- "$pk" bake cornell.gltf -o target.pvol \
-    --target-error 0.2 --verify --verify-points 32 --verify-samples 256
+# --verify skips points inside geometry and says how many of those asked for it used.
+expect 0 "verify: measured error .*\([0-9]+ of 32 points valid" -- "$pk" bake cornell.gltf \
+    -o target.pvol --target-error 0.2 --verify --verify-points 32 --verify-samples 256 \
+    --report verify.json
+check "the report has both verify counts" grep -qE '"points_requested": 32' verify.json
 expect 1 "bricked.json: volumes\[0\].layout: bench compares dense grids" -- \
     "$pk" bench cornell.gltf --config bricked.json --out bench.csv --quick
 echo '{"volumes": [{"layout": "bricked", "levels": 5}]}' >badlevels.json
@@ -96,6 +99,75 @@ echo '{"validity": {"visibility": 1}}' >badvis.json
 expect 1 "badvis.json: validity.visibility" -- "$pk" bake cornell.gltf -o x2.pvol \
     --config badvis.json
 check "no output after a bad visibility setting" test ! -e x2.pvol
+
+# Reproducible files: no wall time in the file, so the same input gives the same bytes, for any
+# thread count and method; the wall time stays in the summary and the report.
+for threads in 1 2; do
+    for run in a b; do
+        "$pk" bake cornell.gltf -o "same-$threads$run.pvol" --resolution 4,4,2 --samples 16 \
+            --threads $threads --report "same-$threads$run.json" >"same-$threads$run.log" 2>&1
+        "$pk" bake cornell.gltf -o "vpl-$threads$run.pvol" --method vpl --vpl-count 1024 \
+            --resolution 4,4,2 --samples 16 --threads $threads >"vpl-$threads$run.log" 2>&1
+    done
+done
+check "two bakes give identical bytes" cmp same-2a.pvol same-2b.pvol
+check "one and two threads give identical bytes" cmp same-1a.pvol same-2a.pvol
+check "two vpl bakes give identical bytes" cmp vpl-2a.pvol vpl-2b.pvol
+check "vpl with one and two threads gives identical bytes" cmp vpl-1a.pvol vpl-2a.pvol
+check "the summary keeps the wall time" grep -qE "^wrote same-1a.pvol: [0-9.]+ s," same-1a.log
+check "the report keeps the wall time" grep -qE '"bake_seconds": [0-9.e-]+' same-1a.json
+info_out=$("$pk" info same-1a.pvol)
+check "info prints no bake seconds of 0" test -n "$info_out" -a -z "$(grep -E '0\.000 s' <<<"$info_out")"
+# The VPL count asked for and the count the light paths placed, both in the log.
+check "vpl log: count requested" grep -qE "^  1024 VPLs requested, " vpl-1a.log
+check "vpl log: requested and placed" grep -qE "^  VPLs: 1024 requested, [0-9]+ placed from" \
+    vpl-1a.log
+
+# An unlit scene (no light, no emitter, black environment) fails and says what to add; the
+# courtyard without its sun is one until a sky is given.
+expect 0 "wrote overcast.gltf" -- "$pk" scene courtyard-overcast -o overcast.gltf
+expect 1 "overcast.gltf: the scene emits no light.*add a KHR_lights_punctual light, an emissive material.*--env R,G,B\|FILE.*\"environment\"" -- \
+    "$pk" bake overcast.gltf -o unlit.pvol --resolution 2,2,2 --samples 8
+check "no output after an unlit bake" test ! -e unlit.pvol
+expect 1 "emits no light" -- "$pk" bake overcast.gltf -o unlit.pvol --target-error 0.2
+check "no output after an unlit --target-error bake" test ! -e unlit.pvol
+expect 0 "wrote lit.pvol" -- "$pk" bake overcast.gltf -o lit.pvol --resolution 2,2,2 \
+    --samples 8 --env 0.3,0.4,0.6
+expect 0 "wrote lit2.pvol" -- "$pk" bake overcast.gltf -o lit2.pvol --samples 8 \
+    --config "$repo/examples/courtyard-bake.json" --resolution 2,2,2
+expect 0 "warning: overcast.gltf: the scene emits no light" -- "$pk" bake overcast.gltf \
+    -o black.pvol --resolution 2,2,2 --samples 8 --allow-unlit --report black.json
+check "the report records the unlit warning" grep -q "emits no light" black.json
+
+# --env: numbers that are not three of them are not a file name.
+expect 1 "--env: expected R,G,B \(three numbers\) or an image file" -- \
+    "$pk" bake cornell.gltf -o env.pvol --env 1,1
+expect 1 "--env: expected R,G,B \(three numbers\) or an image file" -- \
+    "$pk" bake cornell.gltf -o env.pvol --env 1,2,3,4
+expect 1 "no-such-sky.hdr" -- "$pk" bake cornell.gltf -o env.pvol --env no-such-sky.hdr
+check "no output after a bad --env" test ! -e env.pvol
+
+# probekit info on a glTF: what the baker sees, in the project's units.
+expect 0 "^cornell.gltf: glTF scene, 32 triangles, 64 vertices" -- "$pk" info cornell.gltf
+expect 0 "emitters: 2 emissive triangles, area 0.01365 m\^2, power \(1.458" -- \
+    "$pk" info cornell.gltf
+expect 0 "'light': base colour \(0.78, 0.78, 0.78\), untextured, emissive \(17, 12, 4\)" -- \
+    "$pk" info cornell.gltf
+expect 0 "bounds \(0, 0, 0\) .. \(0.556, 0.5488, 0.5592\) m" -- "$pk" info cornell.gltf
+expect 0 "^courtyard.gltf: glTF scene, 192 triangles, 384 vertices" -- "$pk" info courtyard.gltf
+expect 0 "directional light 'light0' .*glTF intensity 3 lux x colour \(1, 0.95, 0.85\)" -- \
+    "$pk" info courtyard.gltf
+expect 0 "= \(3, 2.85, 2.55\) W/m\^2 on a surface facing it" -- "$pk" info courtyard.gltf
+expect 0 "size \(16.4, 6.1, 16.4\) m" -- "$pk" info courtyard.gltf
+expect 0 '"gltf_intensity": 3' -- "$pk" info courtyard.gltf --json
+expect 0 '"triangles": 192' -- "$pk" info courtyard.gltf --json
+expect 0 "point light 'light0' at \(-2, 1.8, -1\) m: glTF intensity 20 cd" -- \
+    "$pk" info thin-wall.gltf
+expect 0 "= \(20, 20, 20\) W/sr \(candela taken as W/sr\), power \(251.327, 251.327, 251.327\) W \(4 pi I\)" -- \
+    "$pk" info thin-wall.gltf
+expect 0 "warning: overcast.gltf: the scene emits no light" -- "$pk" info overcast.gltf
+expect 0 '"warnings": \[' -- "$pk" info overcast.gltf --json
+expect 1 "missing.glb" -- "$pk" info missing.glb
 
 # Bad input: each names the file or field, exits 1, and leaves no output file.
 expect 1 "missing.gltf" -- "$pk" bake missing.gltf -o out1.pvol

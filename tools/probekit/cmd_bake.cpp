@@ -17,6 +17,7 @@
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/bench_rays.hpp"
 #include "probekit/baker/generators.hpp"
+#include "probekit/baker/scene_summary.hpp"
 #include "probekit/baker/settings.hpp"
 #include "probekit/runtime/sampler.hpp"
 
@@ -34,6 +35,7 @@ struct BakeOptionsCli {
     std::vector<uint32_t> resolution;
     std::optional<std::string> env;
     bool noVisibility = false;
+    bool allowUnlit = false;
     uint32_t threads = 0;
     std::optional<int> sceneIndex;
     std::string report;
@@ -90,6 +92,13 @@ Result<baker::EnvironmentConfig> parseEnvFlag(const std::string& value) {
             return makeError(ErrorCode::OutOfRange, "--env: radiance must be >= 0");
         }
         return e;
+    }
+    // Digits, signs, points and commas only: meant as R,G,B, not as a file name.
+    if (value.find_first_not_of("0123456789.,+-eE ") == std::string::npos &&
+        value.find_first_of("0123456789") != std::string::npos) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "--env: expected R,G,B (three numbers) or an image file (got \"" + value +
+                             "\")");
     }
     e.type = baker::EnvironmentConfig::Type::LatLong;
     e.file = value;
@@ -198,8 +207,8 @@ void printMethod(const BakeOptionsCli& o, const baker::Scene& scene,
                     "  %u VPLs%s, %u bounces, %s sampling, clamp %s (%.4f m%s), near field "
                     "%.4f m%s, shadows %s, cut error %g\n",
                     o.scene.c_str(), seed, v.directSamples, *v.count,
-                    config.vpl.count ? ""
-                                     : " (auto: 4 x surface area / probe spacing^2, "
+                    config.vpl.count ? " requested"
+                                     : " requested (auto: 4 x surface area / probe spacing^2, "
                                        "power of two in 16384..65536)",
                     v.bounces, std::string(baker::toString(v.sampling)).c_str(),
                     std::string(baker::toString(v.clamp)).c_str(), *v.clampDistance,
@@ -214,9 +223,9 @@ void printMethod(const BakeOptionsCli& o, const baker::Scene& scene,
                                        : "propagated through the grids";
         std::printf("baking %s: method lpv, seed %llu\n"
                     "  direct light: %s\n"
-                    "  %u VPLs, %u cascade(s) of %u cells on the longest axis (ratio %g), %u "
-                    "iterations%s, occlusion %s, propagation weight %g, fade %g cells, "
-                    "intensity %g\n",
+                    "  %u VPLs requested, %u cascade(s) of %u cells on the longest axis "
+                    "(ratio %g), %u iterations%s, occlusion %s, propagation weight %g, fade %g "
+                    "cells, intensity %g\n",
                     o.scene.c_str(), seed, direct.c_str(), l.vplCount, l.cascades, l.grid,
                     double(l.cascadeRatio), l.iterations ? *l.iterations : l.grid,
                     l.iterations ? "" : " (auto: = grid)", l.occlusion ? "on" : "off",
@@ -265,7 +274,23 @@ bool anyBricked(const PvolFile& file) {
     return false;
 }
 
-nlohmann::json makeReport(const BakeOptionsCli& o, const baker::BakeResult& result,
+// The VPLs a bake asked for: the resolved vpl.count its metadata records (an automatic count is
+// chosen before the bake), or lpv.vpl_count. The light paths place about that many, not exactly
+// (BakeStats::vpls has the count placed).
+uint64_t requestedVpls(const baker::BakeConfig& config, const baker::BakeResult& result) {
+    if (config.method == baker::Method::Lpv) {
+        return config.lpv.vplCount;
+    }
+    const nlohmann::json settings =
+        nlohmann::json::parse(result.file.metadata.parametersJson, nullptr, false);
+    const nlohmann::json::json_pointer count("/vpl/count");
+    return settings.contains(count) && settings.at(count).is_number_unsigned()
+               ? settings.at(count).get<uint64_t>()
+               : 0;
+}
+
+nlohmann::json makeReport(const BakeOptionsCli& o, const baker::BakeConfig& config,
+                          const baker::BakeResult& result,
                           const std::optional<baker::TargetChoice>& choice) {
     const baker::BakeStats& s = result.stats;
     nlohmann::json report = {
@@ -279,10 +304,12 @@ nlohmann::json makeReport(const BakeOptionsCli& o, const baker::BakeResult& resu
         {"peak_memory_bytes", s.peakMemoryBytes},
         {"threads", s.threads},
         {"vpls", s.vpls},
+        {"vpls_requested", requestedVpls(config, result)},
         {"vpl_light_paths", s.vplLightPaths},
         {"vpl_mean_cut", s.vplMeanCut},
         {"settings", nlohmann::json::parse(result.file.metadata.parametersJson)},
         {"gpu_bytes", gpuBytes(result.file)},
+        {"warnings", result.warnings},
     };
     if (anyBricked(result.file)) {
         report["bricks_per_level"] = {s.bricksPerLevel[0], s.bricksPerLevel[1], s.bricksPerLevel[2],
@@ -316,8 +343,14 @@ void printSummary(const BakeOptionsCli& o, const baker::BakeConfig& config,
                 o.output.c_str(), s.seconds, count(s.probes), double(s.rays), s.mraysPerSecond,
                 count(s.invalidProbes), double(s.peakMemoryBytes) / (1 << 20), s.threads);
     if (config.method == baker::Method::Vpl) {
-        std::printf("  %llu VPLs from %llu light paths, %.1f clusters gathered per probe\n",
-                    count(s.vpls), count(s.vplLightPaths), s.vplMeanCut);
+        std::printf("  VPLs: %llu requested, %llu placed from %llu light paths, %.1f clusters "
+                    "gathered per probe\n",
+                    count(requestedVpls(config, result)), count(s.vpls), count(s.vplLightPaths),
+                    s.vplMeanCut);
+    }
+    if (config.method == baker::Method::Lpv) {
+        std::printf("  VPLs: %llu requested, %llu placed\n", count(requestedVpls(config, result)),
+                    count(s.vpls));
     }
     if (anyBricked(result.file)) {
         std::printf("  bricks by level %llu / %llu / %llu / %llu, %llu tested for "
@@ -352,13 +385,16 @@ Result<void> runVerify(const BakeOptionsCli& o, const baker::Scene& scene,
                         {"rel_rmse_raw", e.value().relRmseRaw},
                         {"reference_noise", e.value().referenceNoise},
                         {"points", e.value().points},
+                        {"points_requested", o.verifyPoints},
                         {"samples", o.verifySamples},
                         {"seconds", seconds}};
     if (!o.quiet) {
-        std::printf("verify: measured error %.4f against a path reference (%zu points, 2 x "
-                    "%u directions, reference noise %.4f subtracted; raw %.4f), %.2f s\n",
-                    e.value().relRmse, e.value().points, o.verifySamples, e.value().referenceNoise,
-                    e.value().relRmseRaw, seconds);
+        // Points inside geometry have no reference and are skipped (estimateError).
+        std::printf("verify: measured error %.4f against a path reference (%zu of %u points "
+                    "valid, 2 x %u directions, reference noise %.4f subtracted; raw %.4f), "
+                    "%.2f s\n",
+                    e.value().relRmse, e.value().points, o.verifyPoints, o.verifySamples,
+                    e.value().referenceNoise, e.value().relRmseRaw, seconds);
     }
     return {};
 }
@@ -393,6 +429,7 @@ Result<baker::BakeResult> bakeWithProgress(const BakeOptionsCli& o, const baker:
                                            const baker::BakeConfig& config) {
     baker::BakeOptions options;
     options.threads = o.threads;
+    options.allowUnlit = o.allowUnlit;
     const bool show_progress = !o.quiet && isatty(STDERR_FILENO);
     if (show_progress) {
         options.progress = printProgress;
@@ -412,6 +449,10 @@ int runBake(const BakeOptionsCli& o) {
     Result<baker::Scene> scene = loadScene(o, config.value());
     if (!scene) {
         return fail(scene.error());
+    }
+    // bake() refuses an unlit scene too; checked here before --target-error's pilot runs.
+    if (Result<void> lit = baker::checkSceneLit(scene.value()); !lit && !o.allowUnlit) {
+        return fail(lit.error());
     }
     std::optional<baker::TargetChoice> choice;
     if (config.value().targetError) {
@@ -453,7 +494,7 @@ int runBake(const BakeOptionsCli& o) {
     if (auto w = writePvol(o.output, result.value().file); !w) {
         return fail(w.error());
     }
-    nlohmann::json report = makeReport(o, result.value(), choice);
+    nlohmann::json report = makeReport(o, config.value(), result.value(), choice);
     if (!o.quiet) {
         printSummary(o, config.value(), result.value(), choice);
     }
@@ -535,6 +576,9 @@ void addBakeCommand(CLI::App& app, Command& selected) {
     cmd->add_option("--scene", o->sceneIndex, "glTF scene index (default: the file's default)");
     cmd->add_option("--report", o->report, "write a JSON report of the bake");
     cmd->add_flag("-q,--quiet", o->quiet, "print nothing but errors");
+    cmd->add_flag("--allow-unlit", o->allowUnlit,
+                  "bake a scene that emits no light (no light, no emissive material, black "
+                  "environment) with a warning instead of failing: every probe is zero");
     cmd->add_flag("--no-visibility", o->noVisibility,
                   "store no per-probe visibility (validity.visibility false): plain trilinear "
                   "interpolation, which leaks light through walls between probes");

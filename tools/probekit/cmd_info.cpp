@@ -1,4 +1,7 @@
-// `probekit info` and `probekit validate`: read a .pvol and describe or check it.
+// `probekit info` and `probekit validate`: read a .pvol and describe or check it; `probekit info`
+// also describes a glTF scene as the baker sees it.
+#include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -7,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "probekit/baker/scene_summary.hpp"
 #include "probekit/formats/pvol.hpp"
 
 namespace probekit::cli {
@@ -14,6 +18,18 @@ namespace {
 
 nlohmann::json vec3Json(glm::vec3 v) {
     return nlohmann::json::array({v.x, v.y, v.z});
+}
+
+std::string formatted(const char* format, double value) {
+    char text[64];
+    std::snprintf(text, sizeof text, format, value);
+    return text;
+}
+
+// "(x, y, z)" with %g.
+std::string triple(const nlohmann::json& v) {
+    return "(" + formatted("%g", v[0].get<double>()) + ", " + formatted("%g", v[1].get<double>()) +
+           ", " + formatted("%g", v[2].get<double>()) + ")";
 }
 
 // Bytes of a dense volume at the finest level of a bricked one: probes on the finest lattice,
@@ -58,6 +74,7 @@ nlohmann::json describe(const PvolFile& file, const std::filesystem::path& path)
         {"parameters", params.is_discarded() ? nlohmann::json(m.parametersJson) : params},
         {"seed", m.seed},
         {"scene_hash", hash},
+        // 0 in files baked since bake seconds left the file (README, "The .pvol format").
         {"bake_seconds", m.bakeSeconds}};
     j["volumes"] = nlohmann::json::array();
     for (const Volume& v : file.volumes) {
@@ -100,10 +117,13 @@ void printText(const nlohmann::json& j) {
     std::printf("%s: %llu bytes, %zu volume(s)\n", j["file"].get<std::string>().c_str(),
                 j["file_bytes"].get<unsigned long long>(), j["volumes"].size());
     const auto& m = j["metadata"];
-    std::printf("  baked by %s, method %s, seed %llu, scene hash %s, %.3f s\n",
+    // Bakes record no wall time (0) so that their files are reproducible; older files do.
+    const double seconds = m["bake_seconds"].get<double>();
+    const std::string took = seconds > 0.0 ? ", " + formatted("%.3f s", seconds) : "";
+    std::printf("  baked by %s, method %s, seed %llu, scene hash %s%s\n",
                 m["tool_version"].get<std::string>().c_str(),
                 m["method"].get<std::string>().c_str(), m["seed"].get<unsigned long long>(),
-                m["scene_hash"].get<std::string>().c_str(), m["bake_seconds"].get<double>());
+                m["scene_hash"].get<std::string>().c_str(), took.c_str());
     std::printf("  parameters: %s\n", m["parameters"].dump().c_str());
     for (const auto& v : j["volumes"]) {
         const auto& r = v["resolution"];
@@ -163,6 +183,147 @@ void printText(const nlohmann::json& j) {
     }
 }
 
+// ---- glTF scenes: what the baker sees (formats/CONVENTIONS.md gives the units) ----
+
+bool isSceneFile(const std::filesystem::path& path) {
+    std::string ext = path.extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
+    return ext == ".gltf" || ext == ".glb";
+}
+
+const char* lightTypeName(LightType type) {
+    constexpr const char* kNames[] = {"point", "spot", "directional"}; // LightType's order
+    return kNames[size_t(type)];
+}
+
+nlohmann::json describeLight(const baker::LightSummary& l) {
+    const bool directional = l.type == LightType::Directional;
+    nlohmann::json j = {
+        {"name", l.name},
+        {"type", lightTypeName(l.type)},
+        {"color", vec3Json(l.color)},
+        {"gltf_intensity", l.gltfIntensity},
+        {"gltf_unit", directional ? "lux" : "cd"},
+        {"intensity", vec3Json(l.intensity)},
+        {"unit", directional ? "W/m^2" : "W/sr"},
+        {"range", l.range},
+    };
+    if (!directional) {
+        j["position"] = vec3Json(l.position);
+        j["power_w"] = vec3Json(l.power);
+    }
+    if (l.type != LightType::Point) {
+        j["direction"] = vec3Json(l.direction);
+    }
+    return j;
+}
+
+nlohmann::json describeScene(const baker::SceneSummary& s) {
+    nlohmann::json j;
+    j["file"] = s.source;
+    j["kind"] = "gltf";
+    j["triangles"] = s.triangles;
+    j["vertices"] = s.vertices;
+    j["bounds"] = {{"min", vec3Json(s.bounds.min)},
+                   {"max", vec3Json(s.bounds.max)},
+                   {"size", vec3Json(s.bounds.size())}};
+    j["materials"] = nlohmann::json::array();
+    for (const baker::MaterialSummary& m : s.materials) {
+        j["materials"].push_back({{"name", m.name},
+                                  {"base_color", vec3Json(m.baseColor)},
+                                  {"base_color_textured", m.baseColorTextured},
+                                  {"emission", vec3Json(m.emission)},
+                                  {"emission_textured", m.emissionTextured},
+                                  {"triangles", m.triangles}});
+    }
+    j["lights"] = nlohmann::json::array();
+    for (const baker::LightSummary& l : s.lights) {
+        j["lights"].push_back(describeLight(l));
+    }
+    j["emitters"] = {{"triangles", s.emitters.triangles},
+                     {"area_m2", s.emitters.area},
+                     {"power_w", {s.emitters.power.x, s.emitters.power.y, s.emitters.power.z}}};
+    j["environment_black"] = s.environmentBlack;
+    j["warnings"] = s.warnings;
+    return j;
+}
+
+void printLight(const nlohmann::json& l) {
+    const std::string type = l["type"].get<std::string>();
+    const double range = l["range"].get<double>();
+    const std::string name = l["name"].get<std::string>();
+    std::printf("    %s light '%s'", type.c_str(), name.c_str());
+    if (type != "directional") {
+        std::printf(" at %s m", triple(l["position"]).c_str());
+    }
+    if (type != "point") {
+        std::printf(" shining along %s", triple(l["direction"]).c_str());
+    }
+    std::printf(": glTF intensity %g %s x colour %s\n", l["gltf_intensity"].get<double>(),
+                l["gltf_unit"].get<std::string>().c_str(), triple(l["color"]).c_str());
+    if (type == "directional") {
+        std::printf("      = %s W/m^2 on a surface facing it (lux taken as W/m^2)\n",
+                    triple(l["intensity"]).c_str());
+        return;
+    }
+    std::printf("      = %s W/sr (candela taken as W/sr), power %s W (%s), range %s\n",
+                triple(l["intensity"]).c_str(), triple(l["power_w"]).c_str(),
+                type == "point" ? "4 pi I" : "I x the cone falloff's solid angle",
+                range > 0.0 ? formatted("%g m", range).c_str() : "infinite");
+}
+
+void printSceneText(const nlohmann::json& j) {
+    const auto& b = j["bounds"];
+    std::printf("%s: glTF scene, %llu triangles, %llu vertices\n",
+                j["file"].get<std::string>().c_str(), j["triangles"].get<unsigned long long>(),
+                j["vertices"].get<unsigned long long>());
+    std::printf("  bounds %s .. %s m, size %s m\n", triple(b["min"]).c_str(),
+                triple(b["max"]).c_str(), triple(b["size"]).c_str());
+    std::printf("  materials: %zu\n", j["materials"].size());
+    for (const auto& m : j["materials"]) {
+        std::printf("    '%s': base colour %s%s", m["name"].get<std::string>().c_str(),
+                    triple(m["base_color"]).c_str(),
+                    m["base_color_textured"].get<bool>() ? " x texture" : ", untextured");
+        const auto& e = m["emission"];
+        if (e[0].get<double>() > 0 || e[1].get<double>() > 0 || e[2].get<double>() > 0) {
+            std::printf(", emissive %s W/(sr m^2)%s", triple(e).c_str(),
+                        m["emission_textured"].get<bool>() ? " x texture" : "");
+        }
+        std::printf(", %llu triangles\n", m["triangles"].get<unsigned long long>());
+    }
+    std::printf("  lights: %zu\n", j["lights"].size());
+    for (const auto& l : j["lights"]) {
+        printLight(l);
+    }
+    const auto& em = j["emitters"];
+    std::printf("  emitters: %llu emissive triangles", em["triangles"].get<unsigned long long>());
+    if (em["triangles"].get<unsigned long long>() > 0) {
+        std::printf(", area %g m^2, power %s W (2 pi x area x radiance: two-sided)",
+                    em["area_m2"].get<double>(), triple(em["power_w"]).c_str());
+    }
+    std::printf("\n  environment: none in the file (a bake takes it from --env or the config's "
+                "\"environment\"; black by default)\n");
+    for (const auto& w : j["warnings"]) {
+        std::printf("  warning: %s\n", w.get<std::string>().c_str());
+    }
+}
+
+int infoScene(const std::string& path, bool json) {
+    Result<baker::Scene> scene = baker::loadGltf(path);
+    if (!scene) {
+        std::fprintf(stderr, "probekit info: %s\n", scene.error().message.c_str());
+        return kExitFailure;
+    }
+    const nlohmann::json j = describeScene(baker::summarizeScene(scene.value()));
+    if (json) {
+        std::printf("%s\n", j.dump(2).c_str());
+    } else {
+        printSceneText(j);
+    }
+    return kExitOk;
+}
+
 } // namespace
 
 void addInfoCommand(CLI::App& app, Command& selected) {
@@ -171,11 +332,16 @@ void addInfoCommand(CLI::App& app, Command& selected) {
         bool json = false;
     };
     auto options = std::make_shared<Options>();
-    CLI::App* cmd = app.add_subcommand("info", "Describe the volumes and bake metadata of a .pvol");
-    cmd->add_option("FILE", options->file, "the .pvol file")->required();
+    CLI::App* cmd = app.add_subcommand(
+        "info", "Describe the volumes and bake metadata of a .pvol, or what the baker sees in a "
+                "glTF scene (.gltf, .glb)");
+    cmd->add_option("FILE", options->file, "the .pvol file or glTF scene")->required();
     cmd->add_flag("--json", options->json, "print one JSON object instead of text");
     cmd->callback([options, &selected] {
         selected = [options] {
+            if (isSceneFile(options->file)) {
+                return infoScene(options->file, options->json);
+            }
             Result<PvolFile> file = readPvol(options->file);
             if (!file) {
                 std::fprintf(stderr, "probekit info: %s\n", file.error().message.c_str());

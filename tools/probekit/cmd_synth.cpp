@@ -2,7 +2,6 @@
 // holds the exact SH of a uniform sky plus one point light (a directional delta of irradiance
 // I / d^2 towards the light), so irradiance anywhere is known in closed form. Useful as the
 // bundled example before a scene is baked, and for runtime tests that need no baker.
-#include <chrono>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -27,7 +26,6 @@ struct SynthOptions {
 };
 
 int runSynth(const SynthOptions& o) {
-    const auto start = std::chrono::steady_clock::now();
     const grid::PositionMode mode =
         o.position == "corner" ? grid::PositionMode::Corner : grid::PositionMode::Center;
     Result<grid::GridLayout> layout = grid::GridLayout::make(
@@ -67,8 +65,7 @@ int runSynth(const SynthOptions& o) {
         nlohmann::json{{"sky_radiance", o.sky},
                        {"point_light", {{"position", o.light}, {"intensity", o.intensity}}}}
             .dump();
-    file.metadata.bakeSeconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    // No wall time in the file (bakeSeconds stays 0): the same flags give the same bytes.
     file.volumes.push_back(std::move(volume).value());
     if (auto w = writePvol(o.output, file); !w) {
         std::fprintf(stderr, "probekit synth: %s\n", w.error().message.c_str());

@@ -270,6 +270,10 @@ struct BakeOptions {
     uint32_t threads = 0; // 0 = all hardware threads
     // Called from the calling thread about every 100 ms and once at the end.
     std::function<void(const BakeProgress&)> progress;
+    // A scene that emits no light (checkSceneLit, scene_summary.hpp) bakes to zeros by
+    // construction, so bake() fails on it; true bakes it anyway with a warning (for bakes that
+    // are black on purpose, e.g. the validity of probes alone).
+    bool allowUnlit = false;
 };
 
 struct BakeStats {
@@ -304,7 +308,8 @@ struct BakeResult {
 };
 
 // Checks the config first (validateBakeConfig, settings.hpp): a config built in code gets the
-// errors a config file would.
+// errors a config file would. Then fails on a scene that emits no light (checkSceneLit) unless
+// options.allowUnlit, which turns that error into a warning.
 Result<BakeResult> bake(const Scene& scene, const BakeConfig& config,
                         const BakeOptions& options = {});
 

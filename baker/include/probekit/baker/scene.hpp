@@ -57,6 +57,15 @@ struct SceneNode {
     bool hasMesh = false;
 };
 
+// What the glTF said about one of Scene::lights: the KHR_lights_punctual light it came from, its
+// colour and its intensity (candela for point and spot lights, lux for directional ones);
+// the light's intensity is their product (formats/CONVENTIONS.md gives the units).
+struct GltfLight {
+    int index = -1; // into the file's KHR_lights_punctual lights
+    glm::vec3 color{1.0f};
+    float intensity = 0.0f;
+};
+
 struct Scene {
     // Triangles, world space.
     std::vector<glm::vec3> positions;
@@ -72,12 +81,15 @@ struct Scene {
     std::vector<Material> materials;   // always holds at least one (the glTF default)
     std::vector<Image> images;         // linear RGBA
     std::vector<PunctualLight> lights; // KHR_lights_punctual (formats/light.hpp)
+    std::vector<GltfLight>
+        gltfLights; // one per light when loaded from glTF; empty when built in code
     Environment environment;
     std::vector<SceneNode> nodes; // every node of the chosen scene, in glTF order
 
     grid::Aabb bounds;                 // world bounds of all triangles (empty scene: zero)
     float unitScale = 1.0f;            // metres per file unit applied at load (LoadOptions::scale)
     uint64_t sourceHash = 0;           // xxHash64 of the glTF/glb file bytes
+    std::string source;                // the file it was loaded from, for messages (may be empty)
     std::vector<std::string> warnings; // non-fatal problems, each naming file and field
 
     bool hasGeometry() const { return !triangles.empty(); }

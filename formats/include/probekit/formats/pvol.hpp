@@ -53,6 +53,9 @@ struct BakeMetadata {
     std::string parametersJson; // the resolved settings, as a JSON object
     uint64_t seed = 0;
     uint64_t sceneHash = 0; // xxHash64 of the scene file bytes (0 when there was none)
+    // Wall time of the bake. probekit writes 0 so that the same input gives the same bytes (its
+    // tools report the time instead); files written before that hold the time. Kept in the
+    // layout, so every version still reads unchanged.
     double bakeSeconds = 0.0;
     friend bool operator==(const BakeMetadata&, const BakeMetadata&) = default;
 };
