@@ -74,7 +74,8 @@ TEST(TargetError, BudgetSplitsTheTargetBetweenNoiseBandTwoAndInterpolation) {
     // Samples: the count whose interpolated noise, (2/3)^3 of one probe's variance, is 0.6 t.
     const double wanted =
         t.pilotSamples * t.pilotNoise * t.pilotNoise * (8.0 / 27.0) / (0.6 * target * 0.6 * target);
-    EXPECT_EQ(t.samples, uint32_t(std::ceil(wanted)));
+    // (never fewer than kTargetMinSamples).
+    EXPECT_EQ(t.samples, std::max(uint32_t(std::ceil(wanted)), kTargetMinSamples));
     EXPECT_LE(t.predictedNoise, 0.6 * target * (1.0 + kExact));
     // The Cornell box's coloured walls put a large share of the irradiance in band 2: L2.
     EXPECT_GT(t.band2, 0.4 * target);
@@ -151,3 +152,32 @@ TEST(TargetError, ConfigFieldIsParsedAndChecked) {
 }
 
 } // namespace
+
+// A missed target names its largest term and the limit that held it.
+TEST(TargetError, ExplainNamesTheLargestTermAndItsLimit) {
+    TargetChoice c;
+    c.target = 0.1;
+    c.predictedNoise = 0.02;
+    c.interpolationBudget = 0.08;
+    c.samples = kTargetMinSamples;
+    BakeStats s;
+    s.predictedInterpolationError = 0.3;
+    const auto has = [](const std::string& text, const char* part) {
+        return text.find(part) != std::string::npos;
+    };
+    EXPECT_TRUE(has(explainError(c, s), "interpolation 0.3 is the largest term (budget 0.08)"));
+    EXPECT_TRUE(has(explainError(c, s), "deepest level"));
+    s.budgetDropped = 5;
+    EXPECT_TRUE(has(explainError(c, s), "GPU budget dropped finer bricks"));
+    s.memoryUntested = 2;
+    EXPECT_TRUE(has(explainError(c, s), "working memory left candidate bricks unrefined"));
+    s.predictedInterpolationError = 0.01;
+    c.predictedNoise = 0.2;
+    c.samples = kTargetMaxSamples;
+    EXPECT_TRUE(has(explainError(c, s), "noise 0.2 is the largest term at 65536 directions per "
+                                        "probe (the cap)"));
+    c.predictedNoise = 0.01;
+    c.shOrder = sh::Order::L1;
+    c.band2 = 0.3;
+    EXPECT_TRUE(has(explainError(c, s), "SH band 2 0.3, dropped by L1"));
+}
