@@ -207,8 +207,9 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
     constexpr double kInterpolatedVariance = 8.0 / 27.0;
     const double wanted = double(kPilotSamples) * choice.pilotNoise * choice.pilotNoise *
                           kInterpolatedVariance / (noise_budget * noise_budget);
+    choice.samplesWanted = std::ceil(wanted);
     choice.samples = uint32_t(
-        std::clamp(std::ceil(wanted), double(kTargetMinSamples), double(kTargetMaxSamples)));
+        std::clamp(choice.samplesWanted, double(kTargetMinSamples), double(kTargetMaxSamples)));
     choice.predictedNoise = choice.pilotNoise * std::sqrt(double(kPilotSamples) / choice.samples *
                                                           kInterpolatedVariance);
     choice.interpolationBudget = std::sqrt(std::max(

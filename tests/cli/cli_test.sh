@@ -70,6 +70,8 @@ expect 0 "^x,y,z,nx,ny,nz,r,g,b" -- "$pk" sample bricked.pvol --points points.cs
 expect 1 "target_error: the predicted error .* is more than 1.5 x the target 0.2 \\(interpolation" -- \
     "$pk" bake cornell.gltf -o missed.pvol --target-error 0.2 --report missed.json
 check "a missed target keeps its file" test -s missed.pvol
+expect 1 "the noise budget asked [0-9]+ directions per probe; the floor 128 is used" -- \
+    "$pk" bake cornell.gltf -o missed2.pvol --target-error 0.2
 check "the report records the missed target" grep -q '"target_missed"' missed.json
 expect 0 "verify: measured error .*\([0-9]+ of 32 points valid" -- "$pk" bake cornell.gltf \
     -o target.pvol --target-error 0.2 --verify --verify-points 32 --verify-samples 256 \

@@ -195,6 +195,11 @@ void printChoice(const baker::TargetChoice& c) {
                 int(c.shOrder),
                 c.shOrder == sh::Order::L1 ? "band 2 < 0.4 x target" : "band 2 needed", c.samples,
                 c.predictedNoise, brick::kMaxLevel, c.interpolationBudget);
+    if (c.samplesWanted != double(c.samples)) {
+        std::printf("  the noise budget asked %.0f directions per probe; %s %u is used\n",
+                    c.samplesWanted,
+                    c.samples == baker::kTargetMinSamples ? "the floor" : "the cap", c.samples);
+    }
 }
 
 void printMethod(const BakeOptionsCli& o, const baker::Scene& scene,

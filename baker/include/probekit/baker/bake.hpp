@@ -359,6 +359,7 @@ struct TargetChoice {
     double band2 = 0.0;        // RMS irradiance of SH band 2 (what L1 would lose)
     sh::Order shOrder = sh::Order::L2;
     uint32_t samples = 0;             // chosen directions per probe (path) / direct samples
+    double samplesWanted = 0.0;       // what the noise budget asked, before the floor and cap
     double predictedNoise = 0.0;      // noise after interpolation at `samples`
     double interpolationBudget = 0.0; // refine_error given to the bricked volumes
     double pilotSeconds = 0.0;
