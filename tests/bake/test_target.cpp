@@ -1,12 +1,15 @@
 // Error-driven settings (baker::chooseSettings, --target-error) and the error measure of
 // --verify (baker::estimateError), on synthetic numbers and on the generated Cornell box.
 #include <cmath>
+#include <cstdio>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
 
 #include "bake_test_support.hpp"
 #include "probekit/baker/bake.hpp"
+#include "probekit/baker/generators.hpp"
 #include "probekit/runtime/sampler.hpp"
 
 using namespace probekit;
@@ -109,6 +112,69 @@ TEST(TargetError, UniformSkyChoosesL1AndTheFewestSamples) {
 // measure as --verify, against two independent 2048-direction path estimates at 256 points,
 // their own noise subtracted) lands within 1.5x of the target. Everything is seeded, so this
 // is a fixed number (0.0908 at target 0.1 when written), not a flaky one.
+// Measures a --target-error bake the way --verify does: 256 points, two 2048-direction path
+// estimates, their noise subtracted. Returns {measured, predicted}.
+std::pair<double, double> measureTargetBake(const Scene& scene, const BakeConfig& base,
+                                            double target) {
+    Result<TargetChoice> c = chooseSettings(scene, base, target);
+    EXPECT_TRUE(c.ok()) << c.error().message;
+    if (!c.ok()) {
+        return {0.0, 0.0};
+    }
+    EXPECT_GE(c.value().samples, kTargetMinSamples);
+    Result<BakeResult> baked = bake(scene, c.value().config);
+    EXPECT_TRUE(baked.ok()) << baked.error().message;
+    if (!baked.ok()) {
+        return {0.0, 0.0};
+    }
+    std::vector<VolumeDesc> descs;
+    for (const Volume& v : baked.value().file.volumes) {
+        descs.push_back(v.desc);
+    }
+    const std::vector<glm::vec3> points = volumeSamplePoints(descs, 256);
+    Result<PointBake> a = bakePoints(scene, c.value().config, points, 2048, 1);
+    Result<PointBake> b = bakePoints(scene, c.value().config, points, 2048, 2);
+    EXPECT_TRUE(a.ok() && b.ok());
+    const runtime::VolumeSet set(baked.value().file.volumes);
+    const ErrorEstimate e =
+        estimateError([&](glm::vec3 p, glm::vec3 n) { return set.irradiance(p, n); }, points,
+                      a.value(), b.value());
+    EXPECT_GT(e.points, 200u);
+    return {e.relRmse, predictError(c.value(), baked.value().stats)};
+}
+
+// Assets nobody tuned the baker for (generators.hpp): a textured, thin-legged creature in
+// centimetres (loaded with scale 0.01), thin 3D text under a point and a spot light, and a
+// single closed textured box in open space under a sun and a sky (automatic padding). Each
+// lands within 1.5x of the target; everything is seeded, so these are fixed numbers (0.126,
+// 0.097 and 0.090 measured at target 0.1 when written), not flaky ones.
+TEST(TargetError, RealWorldLikeAssetsLandWithinOneAndAHalfTimesTheTarget) {
+    const double target = 0.1;
+    struct Case {
+        const char* name;
+        float scale;
+        glm::vec3 sky;
+    };
+    for (const Case& k :
+         {Case{"critter-cm", 0.01f, glm::vec3(0.0f)}, Case{"text-floor", 1.0f, glm::vec3(0.0f)},
+          Case{"lone-box", 1.0f, glm::vec3(0.3f, 0.4f, 0.6f)}}) {
+        SCOPED_TRACE(k.name);
+        const auto dir = test::tempDir(std::string("target_") + k.name);
+        ASSERT_TRUE(writeGeneratedScene(k.name, dir / "scene.gltf").ok());
+        LoadOptions load;
+        load.scale = k.scale;
+        Result<Scene> scene = loadGltf(dir / "scene.gltf", load);
+        ASSERT_TRUE(scene.ok()) << scene.error().message;
+        scene.value().environment.constant = k.sky;
+        BakeConfig base;
+        base.scale = k.scale;
+        const auto [measured, predicted] = measureTargetBake(scene.value(), base, target);
+        std::printf("%s target %.3f: measured %.4f, predicted %.4f\n", k.name, target, measured,
+                    predicted);
+        EXPECT_LE(measured, target * 1.5);
+    }
+}
+
 TEST(TargetError, CornellLandsWithinOneAndAHalfTimesTheTarget) {
     const Scene scene = test::generatedScene("cornell");
     const double target = 0.1;
