@@ -147,7 +147,6 @@ enum class Kind : uint8_t {
     Number, // a finite JSON number within lo..hi (ends open or closed)
     Flag,   // true or false
     Choice, // one of `names`
-    Text,   // any string
 };
 
 struct Admits {
@@ -196,7 +195,6 @@ struct Admits {
         case Kind::Flag:
             return "BOOL";
         case Kind::Choice:
-        case Kind::Text:
             return "NAME";
         }
         return "VALUE";
@@ -220,9 +218,6 @@ struct Admits {
             break;
         case Kind::Choice:
             t = joinList(names);
-            break;
-        case Kind::Text:
-            t = "a name";
             break;
         }
         return autoValue ? "auto or " + t : t;
@@ -322,8 +317,6 @@ public:
             return v;
         case Kind::Choice:
             return checkChoice(a.names, v, path);
-        case Kind::Text:
-            return string(v, path);
         }
         return v;
     }
