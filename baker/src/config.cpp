@@ -5,18 +5,17 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <functional>
 #include <limits>
 #include <optional>
 #include <set>
-#include <sstream>
 #include <type_traits>
 
 #include <nlohmann/json.hpp>
 
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/settings.hpp"
+#include "probekit/formats/file_io.hpp"
 
 namespace probekit::baker {
 
@@ -1088,13 +1087,11 @@ Result<BakeConfig> parseBakeConfig(std::string_view json_text, std::string_view 
 }
 
 Result<BakeConfig> loadBakeConfig(const std::filesystem::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) {
-        return makeError(ErrorCode::Io, path.string() + ": cannot open config file");
+    Result<std::string> text = readRegularFile(path, kMaxConfigBytes, "config file");
+    if (!text) {
+        return text.error();
     }
-    std::stringstream text;
-    text << in.rdbuf();
-    return parseBakeConfig(text.str(), path.string(), path.parent_path());
+    return parseBakeConfig(text.value(), path.string(), path.parent_path());
 }
 
 std::string describeConfig(const BakeConfig& c) {

@@ -1,10 +1,15 @@
 #include "probekit/formats/volume.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdio>
+#include <span>
 #include <string>
 
 #include <Imath/half.h>
+
+#include "texel_check.hpp"
 
 namespace probekit {
 
@@ -37,7 +42,71 @@ std::string volumeLabel(const VolumeDesc& desc) {
     return "volume '" + desc.name + "'";
 }
 
+std::string numberText(double value) {
+    if (std::isnan(value)) {
+        return "nan"; // not "-nan": a NaN's sign means nothing
+    }
+    char text[32];
+    std::snprintf(text, sizeof text, "%g", value);
+    return text;
+}
+
 } // namespace
+
+namespace detail {
+
+// ORs `bad` over the whole span (no early exit), which GCC and Clang vectorise; only a span that
+// holds a bad value is scanned again for its index. `Flag` is an integer of the element's width,
+// so the vector lanes match.
+template <class T, class Flag, class Bad>
+size_t firstBad(std::span<const T> values, Bad bad) {
+    Flag any = 0;
+    for (const T value : values) {
+        any |= Flag(bad(value));
+    }
+    if (any == 0) {
+        return values.size();
+    }
+    return size_t(std::find_if(values.begin(), values.end(), bad) - values.begin());
+}
+
+size_t firstBadTexel(std::span<const float> texels) {
+    // |x| > kMaxTexelMagnitude, NaN or infinity is exactly: the bits without the sign, as an
+    // integer, exceed those of kMaxTexelMagnitude (no floating-point compare, no NaN rules).
+    constexpr int32_t kLimit = std::bit_cast<int32_t>(kMaxTexelMagnitude);
+    return firstBad<float, int32_t>(
+        texels, [](float x) { return (std::bit_cast<int32_t>(x) & 0x7fffffff) > kLimit; });
+}
+
+size_t firstBadTexel(std::span<const uint16_t> bits) {
+    // All five exponent bits set: infinity or NaN.
+    return firstBad<uint16_t, int16_t>(
+        bits, [](uint16_t b) { return int16_t(b & 0x7fff) > int16_t(0x7bff); });
+}
+
+Error texelFault(size_t index, size_t probe_count, float value) {
+    const size_t texel = index / 4;
+    const std::string where = "probe " + std::to_string(texel % probe_count) + " (plane " +
+                              std::to_string(texel / probe_count) + ", component " +
+                              std::to_string(index % 4) + ") holds " + numberText(value);
+    if (!std::isfinite(value)) {
+        return makeError(ErrorCode::NonFinite, where + "; every texel must be finite");
+    }
+    return makeError(ErrorCode::OutOfRange, where + ", more than the texel magnitude bound " +
+                                                numberText(kMaxTexelMagnitude));
+}
+
+float texelValue(float value) {
+    return value;
+}
+
+float texelValue(uint16_t bits) {
+    Imath::half h;
+    h.setBits(bits);
+    return float(h);
+}
+
+} // namespace detail
 
 void packProbe(const sh::ShRgb& sh, sh::Order order, glm::vec4* out) {
     for (int c = 0; c < 3; ++c) {
@@ -145,6 +214,13 @@ Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
                                                                std::to_string(i) +
                                                                " has a non-finite SH coefficient");
                 }
+                if (std::abs(v) > kMaxTexelMagnitude) {
+                    return makeError(ErrorCode::OutOfRange,
+                                     volumeLabel(desc) + ": probe " + std::to_string(i) +
+                                         " has the SH coefficient " + numberText(v) +
+                                         ", more than the texel magnitude bound " +
+                                         numberText(kMaxTexelMagnitude));
+                }
                 if (std::abs(v) > largest) {
                     largest = std::abs(v);
                     largest_probe = i;
@@ -182,6 +258,29 @@ Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
 }
 
 Result<void> validateVolume(const Volume& volume) {
+    if (Result<void> structure = detail::validateVolumeStructure(volume); !structure) {
+        return structure;
+    }
+    const size_t probe_count = volume.probeCount();
+    const auto fault = [&](size_t index, float value) -> Result<void> {
+        const Error e = detail::texelFault(index, probe_count, value);
+        return makeError(e.code, volumeLabel(volume.desc) + ": " + e.message);
+    };
+    if (volume.desc.storage == Storage::Float32) {
+        const std::span<const float> texels = volume.texelsF32;
+        if (const size_t bad = detail::firstBadTexel(texels); bad != texels.size()) {
+            return fault(bad, texels[bad]);
+        }
+    } else {
+        const std::span<const uint16_t> texels = volume.texelsF16;
+        if (const size_t bad = detail::firstBadTexel(texels); bad != texels.size()) {
+            return fault(bad, detail::texelValue(texels[bad]));
+        }
+    }
+    return {};
+}
+
+Result<void> detail::validateVolumeStructure(const Volume& volume) {
     const VolumeDesc& desc = volume.desc;
     const std::string label = volumeLabel(desc);
     if (desc.shOrder != sh::Order::L1 && desc.shOrder != sh::Order::L2) {

@@ -6,17 +6,26 @@
 
 #include <algorithm>
 #include <bit>
+#include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <future>
 #include <iterator>
 #include <limits>
 #include <string>
 #include <tuple>
+#include <utility>
 #include <vector>
 
+#include <fcntl.h>
 #include <signal.h>
 #include <sys/resource.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
+#include <sys/un.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -1620,6 +1629,343 @@ TEST_F(PvolAtomicWrite, InterruptedWriteLeavesNoFile) {
     EXPECT_EQ(readAllBytes(existing), old_bytes);
     EXPECT_EQ(directoryEntries(), std::vector<std::string>{"existing.pvol"})
         << "temporary files were left behind";
+}
+
+// --- texel values -------------------------------------------------------------------------------
+
+// Offset of texel component `index` (plane-major, volume.hpp) of the volume at `at`.
+size_t texelOffset(const VolumeOffsets& at, const Volume& volume, size_t index) {
+    return at.texels + index * bytesPerComponent(volume.desc.storage);
+}
+
+TEST_F(PvolReject, NonFiniteAndHugeTexels) {
+    // Volume 0 is float L2 2x2x2 (8 probes), volume 1 half L1 2x8x2 (32 probes).
+    SampleFile sample = sampleFile();
+    const Volume& first = sample.file.volumes[0];
+    const VolumeOffsets at = locateVolume(sample.bytes, first);
+    const std::string first_label = std::string(kSource) + ": volume 0 ('atrium_SENTINEL_04b1'): ";
+    const size_t index = 4 * (6 * 8 + 5) + 2; // plane 6, probe 5, component 2
+    for (const auto& [value, code, what] :
+         {std::tuple{std::numeric_limits<float>::quiet_NaN(), ErrorCode::NonFinite,
+                     "holds nan; every texel must be finite"},
+          std::tuple{-std::numeric_limits<float>::infinity(), ErrorCode::NonFinite,
+                     "holds -inf; every texel must be finite"},
+          std::tuple{3e38f, ErrorCode::OutOfRange,
+                     "holds 3e+38, more than the texel magnitude bound 1e+30"}}) {
+        SCOPED_TRACE(what);
+        std::vector<uint8_t> bytes = sample.bytes;
+        storeAt<float>(bytes, texelOffset(at, first, index), value);
+        resealPayload(bytes);
+        expectRejected(bytes, code,
+                       first_label + "probe 5 (plane 6, component 2) " + std::string(what));
+    }
+    std::vector<uint8_t> bytes = sample.bytes;
+    const size_t half_index = 4 * (2 * 32 + 17) + 3; // plane 2, probe 17, component 3
+    storeAt<uint16_t>(bytes, texelOffset(sample.target, sample.file.volumes[1], half_index),
+                      0x7c00);
+    resealPayload(bytes);
+    expectRejected(bytes, ErrorCode::NonFinite,
+                   targetLabel() + "probe 17 (plane 2, component 3) holds inf; every texel must "
+                                   "be finite");
+}
+
+// --- files the CLI test reads (tests/data/hostile) -----------------------------------------------
+//
+// Each is made here from a recipe and compared with the committed bytes, so the data cannot
+// drift from what this test says about it. After a deliberate format change, regenerate them:
+//   PROBEKIT_REGENERATE_TEST_DATA=1 ./build/tests/probekit_unit_tests --gtest_filter='PvolHostile*'
+
+const std::filesystem::path kHostileDir = std::filesystem::path(PROBEKIT_TEST_DATA_DIR) / "hostile";
+
+// A name and metadata made of bytes a terminal acts on: OSC 0 (window title) ended by BEL,
+// "clear screen", the C1 CSI (U+009B), DEL, and bytes that are not UTF-8 (0xff, 0xfe). The
+// parameters are not valid UTF-8, so they are not JSON either.
+constexpr const char* kEscapeName = "\x1b]0;pwned\x07\x1b[2J\xc2\x9b\xff";
+
+struct HostileFile {
+    const char* fileName;
+    std::vector<uint8_t> bytes;
+};
+
+// A valid 2x2x2 L1 file of one volume, and the bytes with texel component `index` replaced by
+// `value` (or half `bits`) and the checksum resealed; index SIZE_MAX leaves the texels alone.
+std::vector<uint8_t> hostileBytes(const std::string& name, Storage storage, size_t index,
+                                  float value, uint16_t bits) {
+    PvolFile file;
+    file.metadata = testMetadata();
+    file.volumes.push_back(buildVolume({.name = name,
+                                        .resolution = {2, 2, 2},
+                                        .order = Order::L1,
+                                        .storage = storage,
+                                        .seed = 7})
+                               .volume);
+    std::vector<uint8_t> bytes = encodePvol(file);
+    if (index != SIZE_MAX) {
+        const Volume& volume = file.volumes[0];
+        const size_t offset = texelOffset(locateVolume(bytes, volume), volume, index);
+        if (storage == Storage::Float32) {
+            storeAt<float>(bytes, offset, value);
+        } else {
+            storeAt<uint16_t>(bytes, offset, bits);
+        }
+        resealPayload(bytes);
+    }
+    return bytes;
+}
+
+std::vector<HostileFile> hostileFiles() {
+    std::vector<HostileFile> files;
+    {
+        PvolFile file;
+        file.metadata = testMetadata();
+        file.metadata.toolVersion = "probekit \x1b[31mred\x1b[0m";
+        file.metadata.method = "path\x7f";
+        file.metadata.parametersJson = "{\"note\": \"\xff\xfe\x1b[5m\"}";
+        file.volumes.push_back(
+            buildVolume({.name = kEscapeName, .resolution = {2, 2, 2}, .order = Order::L1}).volume);
+        files.push_back({"escapes.pvol", encodePvol(file)});
+    }
+    // 8 probes per plane: plane 1, probe 5, component 2.
+    files.push_back({"nan-texel.pvol", hostileBytes("\x1b[2Jnan", Storage::Float32, 4 * (8 + 5) + 2,
+                                                    std::numeric_limits<float>::quiet_NaN(), 0)});
+    files.push_back({"huge-texel.pvol", hostileBytes("huge", Storage::Float32, 0, 3e38f, 0)});
+    files.push_back({"inf-half.pvol",
+                     hostileBytes("inf-half", Storage::Float16, 4 * (2 * 8 + 7) + 3, 0, 0x7c00)});
+    return files;
+}
+
+using PvolHostile = PvolFileTest;
+
+TEST_F(PvolHostile, DataMatchesItsRecipes) {
+    const bool regenerate = std::getenv("PROBEKIT_REGENERATE_TEST_DATA") != nullptr;
+    for (const HostileFile& f : hostileFiles()) {
+        SCOPED_TRACE(f.fileName);
+        const std::filesystem::path path = kHostileDir / f.fileName;
+        if (regenerate) {
+            ASSERT_TRUE(writeFileAtomic(path, f.bytes).ok());
+        }
+        EXPECT_EQ(readAllBytes(path), f.bytes) << path << " differs from its recipe";
+    }
+}
+
+using PvolHostileReject = PvolReject;
+
+TEST_F(PvolHostileReject, DataDecodesAsTheCliTestExpects) {
+    const std::vector<HostileFile> files = hostileFiles();
+    // Names and metadata are bytes: decoding keeps them, whatever a terminal would make of them.
+    const Result<PvolFile> escapes = decode(files[0].bytes);
+    ASSERT_TRUE(escapes.ok()) << escapes.error().message;
+    EXPECT_EQ(escapes.value().volumes[0].desc.name, kEscapeName);
+    EXPECT_EQ(escapes.value().metadata.parametersJson, "{\"note\": \"\xff\xfe\x1b[5m\"}");
+    expectRejected(files[1].bytes, ErrorCode::NonFinite,
+                   std::string(kSource) + ": volume 0 ('\x1b[2Jnan'): probe 5 (plane 1, "
+                                          "component 2) holds nan; every texel must be finite");
+    expectRejected(files[2].bytes, ErrorCode::OutOfRange,
+                   std::string(kSource) + ": volume 0 ('huge'): probe 0 (plane 0, component 0) "
+                                          "holds 3e+38, more than the texel magnitude bound "
+                                          "1e+30");
+    expectRejected(files[3].bytes, ErrorCode::NonFinite,
+                   std::string(kSource) + ": volume 0 ('inf-half'): probe 7 (plane 2, component "
+                                          "3) holds inf; every texel must be finite");
+}
+
+// --- special files: only regular files are read ------------------------------------------------
+
+using PvolSpecialFiles = PvolFileTest;
+
+// Runs `read` on another thread. A reader that opens a FIFO before checking it blocks in open()
+// until a writer comes: if `read` has not returned after 10 s, the test fails and plays that
+// writer (a non-blocking open of the write end) so the thread can finish.
+template <class Read>
+auto readWithoutBlocking(const std::filesystem::path& fifo, Read read) {
+    auto pending = std::async(std::launch::async, read);
+    if (pending.wait_for(std::chrono::seconds(10)) != std::future_status::ready) {
+        ADD_FAILURE() << "reading the FIFO " << fifo << " blocked";
+        const int writer = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
+        pending.wait();
+        if (writer >= 0) {
+            ::close(writer);
+        }
+    }
+    return pending.get();
+}
+
+TEST_F(PvolSpecialFiles, ReadPvolRefusesAFifoWithoutBlocking) {
+    const std::filesystem::path fifo = m_dir / "pipe.pvol";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    const Result<PvolFile> result = readWithoutBlocking(fifo, [&] { return readPvol(fifo); });
+    ASSERT_FALSE(result.ok());
+    EXPECT_EQ(result.error().code, ErrorCode::Io);
+    EXPECT_EQ(result.error().message, fifo.string() + ": not a regular file (it is a FIFO)");
+}
+
+TEST_F(PvolSpecialFiles, ReadPvolNamesWhatTheFileIs) {
+    const Result<PvolFile> directory = readPvol(m_dir);
+    ASSERT_FALSE(directory.ok());
+    EXPECT_EQ(directory.error().message,
+              m_dir.string() + ": not a regular file (it is a directory)");
+    const Result<PvolFile> device = readPvol("/dev/zero");
+    ASSERT_FALSE(device.ok());
+    EXPECT_EQ(device.error().message, "/dev/zero: not a regular file (it is a character device)");
+}
+
+TEST_F(PvolSpecialFiles, ReadRegularFileRefusesSpecialFilesAndLargeOnes) {
+    const std::filesystem::path fifo = m_dir / "pipe.json";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    const Result<std::string> from_fifo =
+        readWithoutBlocking(fifo, [&] { return readRegularFile(fifo, 100, "config file"); });
+    ASSERT_FALSE(from_fifo.ok());
+    EXPECT_EQ(from_fifo.error().message,
+              fifo.string() + ": the config file is not a regular file (it is a FIFO)");
+    EXPECT_EQ(readRegularFile(m_dir, 100, "config file").error().message,
+              m_dir.string() + ": the config file is not a regular file (it is a directory)");
+    EXPECT_EQ(readRegularFile("/dev/zero", 100, "points file").error().message,
+              "/dev/zero: the points file is not a regular file (it is a character device)");
+    EXPECT_EQ(readRegularFile(m_dir / "absent.json", 100, "config file").error().message,
+              (m_dir / "absent.json").string() +
+                  ": cannot open the config file: No such file or directory");
+
+    const std::filesystem::path text = m_dir / "ten.txt";
+    ASSERT_TRUE(writeFileAtomic(text, std::string_view("0123456789")).ok());
+    const Result<std::string> fits = readRegularFile(text, 10, "points file");
+    ASSERT_TRUE(fits.ok()) << fits.error().message;
+    EXPECT_EQ(fits.value(), "0123456789");
+    const Result<std::string> too_large = readRegularFile(text, 9, "points file");
+    ASSERT_FALSE(too_large.ok());
+    EXPECT_EQ(too_large.error().code, ErrorCode::OutOfRange);
+    EXPECT_EQ(too_large.error().message,
+              text.string() + ": the points file is 10 bytes, more than the limit of 9 bytes");
+}
+
+// --- output over special files and links --------------------------------------------------------
+
+TEST_F(PvolAtomicWrite, RefusesToReplaceAFifoADirectoryOrASocket) {
+    const std::filesystem::path fifo = m_dir / "pipe.pvol";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    const std::filesystem::path directory = m_dir / "folder.pvol";
+    std::filesystem::create_directory(directory);
+    const std::filesystem::path socket_path = m_dir / "socket.pvol";
+    const int listener = ::socket(AF_UNIX, SOCK_STREAM, 0);
+    ASSERT_GE(listener, 0);
+    sockaddr_un address{};
+    address.sun_family = AF_UNIX;
+    ASSERT_LT(socket_path.string().size(), sizeof(address.sun_path));
+    std::strcpy(address.sun_path, socket_path.c_str());
+    ASSERT_EQ(::bind(listener, reinterpret_cast<const sockaddr*>(&address), sizeof(address)), 0);
+
+    const std::vector<uint8_t> bytes = sampleFile().bytes;
+    for (const auto& [path, kind] : {std::pair{fifo, "a FIFO"}, std::pair{directory, "a directory"},
+                                     std::pair{socket_path, "a socket"}}) {
+        const Result<void> result = writeFileAtomic(path, bytes);
+        ASSERT_FALSE(result.ok()) << path;
+        EXPECT_EQ(result.error().code, ErrorCode::Io);
+        EXPECT_EQ(result.error().message, path.string() + ": not a regular file (it is " + kind +
+                                              "); only a regular file is replaced");
+    }
+    ::close(listener);
+    EXPECT_TRUE(std::filesystem::is_fifo(fifo));
+    EXPECT_TRUE(std::filesystem::is_directory(directory));
+    EXPECT_TRUE(std::filesystem::is_socket(socket_path));
+    EXPECT_EQ(directoryEntries(),
+              (std::vector<std::string>{"folder.pvol", "pipe.pvol", "socket.pvol"}));
+}
+
+TEST_F(PvolAtomicWrite, RefusesToReplaceACharacterDevice) {
+    // A copy of /dev/null's node (needs root or CAP_MKNOD), so the test never risks the real one.
+    const std::filesystem::path device = m_dir / "null.pvol";
+    if (::mknod(device.c_str(), S_IFCHR | 0600, makedev(1, 3)) != 0) {
+        GTEST_SKIP() << "cannot make a device node here: " << std::strerror(errno);
+    }
+    const Result<void> result = writeFileAtomic(device, std::string_view("data"));
+    ASSERT_FALSE(result.ok());
+    EXPECT_EQ(result.error().message, device.string() + ": not a regular file (it is a character "
+                                                        "device); only a regular file is replaced");
+    EXPECT_TRUE(std::filesystem::is_character_file(device));
+}
+
+TEST_F(PvolAtomicWrite, FollowsSymbolicLinksAndKeepsThem) {
+    // out/latest.pvol -> ../store/v1.pvol, relative to the link's own folder; a second link in
+    // front of it; the file is replaced in store/, beside itself, and both links stay.
+    std::filesystem::create_directories(m_dir / "store");
+    std::filesystem::create_directories(m_dir / "out");
+    const std::filesystem::path target = m_dir / "store" / "v1.pvol";
+    ASSERT_TRUE(writeFileAtomic(target, std::string_view("old")).ok());
+    std::filesystem::create_symlink("../store/v1.pvol", m_dir / "out" / "latest.pvol");
+    std::filesystem::create_symlink("out/latest.pvol", m_dir / "front.pvol");
+
+    const SampleFile sample = sampleFile();
+    ASSERT_TRUE(writePvol(m_dir / "front.pvol", sample.file).ok());
+    EXPECT_TRUE(std::filesystem::is_symlink(m_dir / "front.pvol"));
+    EXPECT_TRUE(std::filesystem::is_symlink(m_dir / "out" / "latest.pvol"));
+    EXPECT_EQ(std::filesystem::read_symlink(m_dir / "out" / "latest.pvol"), "../store/v1.pvol");
+    EXPECT_EQ(readAllBytes(target), sample.bytes);
+    EXPECT_EQ(resolveOutputPath(m_dir / "front.pvol").value(), m_dir / "out" / "../store/v1.pvol");
+    // No temporary anywhere.
+    EXPECT_EQ(directoryEntries(), (std::vector<std::string>{"front.pvol", "out", "store"}));
+    EXPECT_EQ(std::distance(std::filesystem::directory_iterator(m_dir / "store"), {}), 1);
+    EXPECT_EQ(std::distance(std::filesystem::directory_iterator(m_dir / "out"), {}), 1);
+}
+
+TEST_F(PvolAtomicWrite, DanglingLinkCreatesItsTargetAndBadLinksAreRefused) {
+    std::filesystem::create_symlink("made.pvol", m_dir / "dangling.pvol");
+    ASSERT_TRUE(writeFileAtomic(m_dir / "dangling.pvol", std::string_view("new")).ok());
+    EXPECT_TRUE(std::filesystem::is_symlink(m_dir / "dangling.pvol"));
+    EXPECT_EQ(readAllBytes(m_dir / "made.pvol"), (std::vector<uint8_t>{'n', 'e', 'w'}));
+
+    std::filesystem::create_directory(m_dir / "folder");
+    std::filesystem::create_symlink("folder", m_dir / "to_folder.pvol");
+    EXPECT_EQ(writeFileAtomic(m_dir / "to_folder.pvol", std::string_view("x")).error().message,
+              (m_dir / "to_folder.pvol").string() +
+                  ": not a regular file (it is a symbolic link to a directory); only a regular "
+                  "file is replaced");
+
+    std::filesystem::create_symlink("loop_b.pvol", m_dir / "loop_a.pvol");
+    std::filesystem::create_symlink("loop_a.pvol", m_dir / "loop_b.pvol");
+    EXPECT_EQ(writeFileAtomic(m_dir / "loop_a.pvol", std::string_view("x")).error().message,
+              (m_dir / "loop_a.pvol").string() +
+                  ": cannot write there: Too many levels of symbolic links");
+    EXPECT_EQ(directoryEntries(),
+              (std::vector<std::string>{"dangling.pvol", "folder", "loop_a.pvol", "loop_b.pvol",
+                                        "made.pvol", "to_folder.pvol"}));
+}
+
+// --- interrupts ----------------------------------------------------------------------------------
+
+TEST_F(PvolAtomicWrite, SignalHandlerRemovesTheTemporaryBeingWritten) {
+    // A child writes a multi-megabyte file under a 4 KB file-size limit; the first write past
+    // the limit raises SIGXFSZ inside writeFileAtomic, whose handler here does what the CLI's
+    // SIGINT/SIGTERM handler does (removeTemporaryFilesForSignal) and exits. Without the removal
+    // the partial temporary would stay beside the old file.
+    PvolFile file;
+    file.metadata = testMetadata();
+    file.volumes.push_back(
+        buildVolume({.name = "big", .resolution = {64, 32, 16}, .seed = 5}).volume);
+    const std::filesystem::path existing = m_dir / "existing.pvol";
+    const std::vector<uint8_t> old_bytes(1000, 0xAB);
+    ASSERT_TRUE(writeFileAtomic(existing, old_bytes).ok());
+
+    constexpr int kHandled = 42;
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0) << "fork failed";
+    if (child == 0) {
+        struct sigaction action {};
+        action.sa_handler = [](int) {
+            removeTemporaryFilesForSignal();
+            ::_exit(kHandled);
+        };
+        ::sigaction(SIGXFSZ, &action, nullptr);
+        const rlimit limit{4096, 4096};
+        ::setrlimit(RLIMIT_FSIZE, &limit);
+        (void)writePvol(existing, file);
+        ::_exit(0); // the write finished: no signal came
+    }
+    int status = 0;
+    ASSERT_EQ(::waitpid(child, &status, 0), child);
+    ASSERT_TRUE(WIFEXITED(status)) << "child ended by signal " << WTERMSIG(status);
+    EXPECT_EQ(WEXITSTATUS(status), kHandled);
+    EXPECT_EQ(readAllBytes(existing), old_bytes);
+    EXPECT_EQ(directoryEntries(), std::vector<std::string>{"existing.pvol"})
+        << "the temporary file was left behind";
 }
 
 // --- xxHash64 ----------------------------------------------------------------------------------

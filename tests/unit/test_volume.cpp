@@ -1,5 +1,8 @@
 #include <cmath>
 #include <cstring>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -215,4 +218,88 @@ TEST(VolumeValidate, CatchesBrickedInconsistencies) {
     Volume dense_with_bricks = good;
     dense_with_bricks.desc.layout = VolumeLayout::Dense;
     EXPECT_EQ(validateVolume(dense_with_bricks).error().code, ErrorCode::InconsistentSize);
+}
+
+// --- texel values (validateVolume checks every one) --------------------------------------------
+
+namespace {
+
+// A valid 2x4x2 L1 volume (16 probes, 3 planes) of the given storage.
+Volume smallVolume(Storage storage) {
+    const VolumeDesc d = desc(sh::Order::L1, storage);
+    std::vector<sh::ShRgb> probes;
+    for (size_t i = 0; i < d.grid.probeCount(); ++i) {
+        probes.push_back(distinctSh(i, sh::Order::L1));
+    }
+    return makeVolume(d, probes).value();
+}
+
+// Index of component `component` of probe `probe`'s texel in plane `plane` (volume.hpp's
+// plane-major order) in a 16-probe volume.
+size_t texelIndex(uint32_t plane, size_t probe, int component) {
+    return 4 * (size_t(plane) * 16 + probe) + size_t(component);
+}
+
+std::string validateMessage(const Volume& v) {
+    const Result<void> r = validateVolume(v);
+    return r ? std::string("(valid)") : r.error().message;
+}
+
+} // namespace
+
+TEST(VolumeValidate, RejectsNonFiniteFloatTexelsNamingProbePlaneAndValue) {
+    const size_t at = texelIndex(1, 5, 2);
+    for (const auto& [value, text] :
+         {std::pair{NAN, "nan"}, std::pair{INFINITY, "inf"}, std::pair{-INFINITY, "-inf"}}) {
+        Volume v = smallVolume(Storage::Float32);
+        v.texelsF32[at] = value;
+        EXPECT_EQ(validateVolume(v).error().code, ErrorCode::NonFinite);
+        EXPECT_EQ(validateMessage(v), std::string("volume 'test': probe 5 (plane 1, component 2) "
+                                                  "holds ") +
+                                          text + "; every texel must be finite");
+    }
+}
+
+TEST(VolumeValidate, BoundsFloatTexelMagnitudeAt1e30) {
+    Volume v = smallVolume(Storage::Float32);
+    const size_t at = texelIndex(2, 15, 3); // the last component of the last plane
+    for (const float fine : {kMaxTexelMagnitude, -kMaxTexelMagnitude}) {
+        v.texelsF32[at] = fine;
+        EXPECT_TRUE(validateVolume(v).ok()) << validateMessage(v);
+    }
+    v.texelsF32[at] = std::nextafter(kMaxTexelMagnitude, INFINITY);
+    EXPECT_EQ(validateVolume(v).error().code, ErrorCode::OutOfRange);
+    v.texelsF32[at] = -3e38f;
+    EXPECT_EQ(validateVolume(v).error().code, ErrorCode::OutOfRange);
+    EXPECT_EQ(validateMessage(v), "volume 'test': probe 15 (plane 2, component 3) holds -3e+38, "
+                                  "more than the texel magnitude bound 1e+30");
+}
+
+TEST(VolumeValidate, RejectsHalfInfinityAndNan) {
+    Volume v = smallVolume(Storage::Float16);
+    const size_t at = texelIndex(0, 9, 1);
+    v.texelsF16[at] = 0x7bff; // 65504, the largest finite half
+    EXPECT_TRUE(validateVolume(v).ok()) << validateMessage(v);
+    for (const auto& [bits, text] :
+         {std::pair{uint16_t(0x7c00), "inf"}, std::pair{uint16_t(0xfc00), "-inf"},
+          std::pair{uint16_t(0x7e00), "nan"}, std::pair{uint16_t(0xfd01), "nan"}}) {
+        v.texelsF16[at] = bits;
+        EXPECT_EQ(validateVolume(v).error().code, ErrorCode::NonFinite);
+        EXPECT_EQ(validateMessage(v), std::string("volume 'test': probe 9 (plane 0, component 1) "
+                                                  "holds ") +
+                                          text + "; every texel must be finite");
+    }
+}
+
+TEST(VolumeMake, RejectsACoefficientBeyondTheTexelBound) {
+    VolumeDesc d = desc(sh::Order::L1, Storage::Float32);
+    std::vector<sh::ShRgb> probes(d.grid.probeCount());
+    probes[7].rgb[2].y = -2e30f;
+    const Result<Volume> made = makeVolume(d, probes);
+    ASSERT_FALSE(made.ok());
+    EXPECT_EQ(made.error().code, ErrorCode::OutOfRange);
+    EXPECT_EQ(made.error().message, "volume 'test': probe 7 has the SH coefficient -2e+30, more "
+                                    "than the texel magnitude bound 1e+30");
+    probes[7].rgb[2].y = -1e30f;
+    EXPECT_TRUE(makeVolume(d, probes).ok());
 }

@@ -222,7 +222,11 @@ struct BakeConfig {
 // The settings, their ranges and their flags are one table (settings.hpp).
 Result<BakeConfig> parseBakeConfig(std::string_view json_text, std::string_view source,
                                    const std::filesystem::path& base_dir = {});
+// Reads a config file and parses it: a regular file (a directory, FIFO or device is refused,
+// file_io.hpp) of at most kMaxConfigBytes.
 Result<BakeConfig> loadBakeConfig(const std::filesystem::path& path);
+// 16 MiB: a config with thousands of volumes is a few hundred KB.
+constexpr uint64_t kMaxConfigBytes = uint64_t(16) << 20;
 
 // The config with every default filled in, as JSON (recorded in the file's metadata).
 std::string describeConfig(const BakeConfig& config);

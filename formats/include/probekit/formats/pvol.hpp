@@ -36,6 +36,7 @@
 #include <string_view>
 #include <vector>
 
+#include "probekit/formats/file_io.hpp"
 #include "probekit/formats/result.hpp"
 #include "probekit/formats/volume.hpp"
 
@@ -72,21 +73,15 @@ std::vector<uint8_t> encodePvol(const PvolFile& file);
 // Parses untrusted bytes. `source_name` only labels error messages (usually the path).
 Result<PvolFile> decodePvol(std::span<const uint8_t> bytes, std::string_view source_name);
 
-// Reads and decodes a file.
+// Reads and decodes a file. Only a regular file is read (file_io.hpp): a FIFO, a device or a
+// directory is refused before any read, so readPvol never blocks.
 Result<PvolFile> readPvol(const std::filesystem::path& path);
 
-// Writes atomically: the bytes go to a temporary file in the same directory, are flushed to
-// disk, then renamed over `path`. If anything fails the temporary file is removed, `path` is
-// untouched (an existing file keeps its old contents), and the error names the path.
+// Writes atomically with writeFileAtomic (file_io.hpp): the bytes go to a temporary file in the
+// target's directory, are flushed to disk, then renamed over `path`. If anything fails the
+// temporary file is removed, `path` is untouched (an existing file keeps its old contents), and
+// the error names the path. Only a regular file is replaced; symbolic links are followed.
 Result<void> writePvol(const std::filesystem::path& path, const PvolFile& file);
-
-// Writes arbitrary bytes atomically with the same guarantees (used by writePvol and tools).
-Result<void> writeFileAtomic(const std::filesystem::path& path, std::span<const uint8_t> bytes);
-// The same for text (CSV, JSON, glTF).
-inline Result<void> writeFileAtomic(const std::filesystem::path& path, std::string_view text) {
-    return writeFileAtomic(path,
-                           std::span(reinterpret_cast<const uint8_t*>(text.data()), text.size()));
-}
 
 // xxHash64 (Yann Collet's algorithm, specification at xxhash.com) of a byte range.
 uint64_t xxhash64(std::span<const uint8_t> bytes, uint64_t seed = 0);

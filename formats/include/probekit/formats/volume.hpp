@@ -51,6 +51,13 @@ constexpr size_t bytesPerComponent(Storage storage) {
 // Largest finite binary16 value; larger magnitudes cannot be stored as half.
 constexpr float kHalfMax = 65504.0f;
 
+// Largest texel magnitude a volume may hold (validateVolume, makeVolume). Irradiance from SH is
+// a sum of at most 9 products per channel (27 over RGB) of a coefficient and a constant below
+// 1.1, blended with weights that sum to 1; under this bound it stays below about 1e31, far
+// from float's 3.4e38, so every evaluation of a valid file is finite. Real radiance is many
+// orders of magnitude below it (the sun is about 2e7 W/(sr m^2)).
+constexpr float kMaxTexelMagnitude = 1e30f;
+
 // Probe validity: 1 = the probe sees the scene from open space, 0 = it was inside geometry
 // (its coefficients were filled by dilation from valid neighbours).
 constexpr uint8_t kProbeValid = 1;
@@ -137,7 +144,7 @@ sh::ShRgb unpackProbe(const glm::vec4* texels, sh::Order order);
 //  * a bricked layout fails brick::buildIndirection (a gap, a repeated brick, ...);
 //  * probes.size() or validity.size() differs from desc.probeCount(), or visibility.size()
 //    from 0 and kBytesPerProbe * desc.probeCount();
-//  * a coefficient is NaN or infinite;
+//  * a coefficient is NaN or infinite, or its magnitude exceeds kMaxTexelMagnitude;
 //  * storage is Float16 and a coefficient's magnitude exceeds kHalfMax (the message gives the
 //    largest magnitude and suggests float storage) -- never a silent infinity.
 Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
@@ -146,7 +153,11 @@ Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
 
 // Checks a volume's internal consistency (sizes, enums, bounds, resolution, validity bytes;
 // for bricked volumes the tiling and that `indirection` matches it; visibility empty or
-// kBytesPerProbe per probe).
+// kBytesPerProbe per probe) and every texel: finite (float and half storage) and of magnitude at
+// most kMaxTexelMagnitude. A texel failure names the probe, plane, component and value:
+//   "volume 'v': probe 5 (plane 2, component 3) holds nan; every texel must be finite"
+//   "volume 'v': probe 5 (plane 2, component 3) holds 3e+38, more than the texel magnitude
+//    bound 1e+30"
 Result<void> validateVolume(const Volume& volume);
 
 } // namespace probekit
