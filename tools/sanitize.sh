@@ -9,7 +9,7 @@ flags="-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recove
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS="$flags" \
     -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" >/dev/null
 cmake --build build-asan --parallel "$(nproc)" \
-    --target probekit_unit_tests probekit_bake_tests probekit
+    --target probekit_unit_tests probekit_bake_tests probekit probekit_test_pause_in_fsync
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
 export UBSAN_OPTIONS=print_stacktrace=1
 ctest --test-dir build-asan -L 'unit|bake' --output-on-failure -j2 --timeout 1500

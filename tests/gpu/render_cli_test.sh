@@ -99,7 +99,18 @@ mkdir locked && chmod 500 locked
 if [[ ! -w locked ]]; then # root can write anyway; the check only means something otherwise
     expect 1 "locked/x.png" -- "$pk" render cornell.gltf volume.pvol -o locked/x.png --size 8,8
 fi
-check "no temporary files left" bash -c '! ls -A . locked | grep -q "\.tmp\."'
+# The output rule of every command (README, "Files probekit reads and writes"): a FIFO is
+# refused before any rendering, a link is followed and stays a link, and both formats are
+# written through the same atomic writer.
+mkfifo fifo.png
+expect 1 "fifo.png: not a regular file \(it is a FIFO\); only a regular file is replaced" -- \
+    timeout 60 "$pk" render cornell.gltf volume.pvol -o fifo.png --size 8,8
+check "the FIFO is still a FIFO" test -p fifo.png
+mkdir store && cp e.exr store/v1.exr && ln -s store/v1.exr latest.exr
+expect 0 "wrote latest.exr" -- "$pk" render cornell.gltf volume.pvol -o latest.exr --size 8,8
+check "-o onto a link keeps the link" test -L latest.exr
+check "-o onto a link writes its target" bash -c '! cmp -s e.exr store/v1.exr'
+check "no temporary files left" bash -c '! ls -A . locked store | grep -q "\.tmp\."'
 
 echo "render CLI: $passed passed, $failed failed"
 [[ $failed -eq 0 ]]

@@ -20,6 +20,7 @@
 #include "probekit/baker/scene_summary.hpp"
 #include "probekit/baker/settings.hpp"
 #include "probekit/runtime/sampler.hpp"
+#include "terminal_text.hpp"
 
 namespace probekit::cli {
 namespace {
@@ -46,7 +47,7 @@ struct BakeOptionsCli {
 };
 
 int fail(const Error& e, const char* what = "") {
-    std::fprintf(stderr, "probekit bake: %s%s\n", what, e.message.c_str());
+    printError("bake", what + e.message);
     return kExitFailure;
 }
 
@@ -180,7 +181,7 @@ Result<baker::Scene> loadScene(const BakeOptionsCli& o, const baker::BakeConfig&
     }
     scene.value().environment = std::move(environment).value();
     for (const std::string& w : scene.value().warnings) {
-        std::fprintf(stderr, "probekit bake: warning: %s\n", w.c_str());
+        printError("bake", "warning: " + w);
     }
     return scene;
 }
@@ -249,14 +250,14 @@ void printVolumes(const std::vector<VolumeDesc>& placed) {
         if (d.layout == VolumeLayout::Bricked) {
             std::printf("  volume '%s': bricked, %ux%ux%u level-0 bricks, levels 0..%u, L%d, "
                         "%s, bounds (%.3f, %.3f, %.3f) .. (%.3f, %.3f, %.3f) m\n",
-                        d.name.c_str(), r.x, r.y, r.z, d.bricks.maxLevel, int(d.shOrder),
-                        std::string(toString(d.storage)).c_str(), lo.x, lo.y, lo.z, hi.x, hi.y,
-                        hi.z);
+                        terminalText(d.name).c_str(), r.x, r.y, r.z, d.bricks.maxLevel,
+                        int(d.shOrder), std::string(toString(d.storage)).c_str(), lo.x, lo.y, lo.z,
+                        hi.x, hi.y, hi.z);
             continue;
         }
         std::printf("  volume '%s': %ux%ux%u %s probes, L%d, %s, bounds (%.3f, %.3f, %.3f) "
                     ".. (%.3f, %.3f, %.3f) m\n",
-                    d.name.c_str(), r.x, r.y, r.z,
+                    terminalText(d.name).c_str(), r.x, r.y, r.z,
                     std::string(grid::toString(d.grid.mode())).c_str(), int(d.shOrder),
                     std::string(toString(d.storage)).c_str(), lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
     }
@@ -451,6 +452,10 @@ Result<baker::BakeResult> bakeWithProgress(const BakeOptionsCli& o, const baker:
 }
 
 int runBake(const BakeOptionsCli& o) {
+    // A bad -o fails before the bake, not after it.
+    if (Result<std::filesystem::path> target = resolveOutputPath(o.output); !target) {
+        return fail(target.error());
+    }
     Result<baker::BakeConfig> config = configFromOptions(o);
     if (!config) {
         return fail(config.error());
@@ -489,7 +494,7 @@ int runBake(const BakeOptionsCli& o) {
     // repeats these in its warnings, which are not printed twice.
     const std::vector<std::string>& notes = plan.value().notes;
     for (const std::string& n : notes) {
-        std::fprintf(stderr, "probekit bake: warning: %s\n", n.c_str());
+        printError("bake", "warning: " + n);
     }
     Result<baker::BakeResult> result = bakeWithProgress(o, scene.value(), config.value());
     if (!result) {
@@ -497,7 +502,7 @@ int runBake(const BakeOptionsCli& o) {
     }
     for (const std::string& w : result.value().warnings) {
         if (std::find(notes.begin(), notes.end(), w) == notes.end()) {
-            std::fprintf(stderr, "probekit bake: warning: %s\n", w.c_str());
+            printError("bake", "warning: " + w);
         }
     }
     if (auto w = writePvol(o.output, result.value().file); !w) {
@@ -517,13 +522,12 @@ int runBake(const BakeOptionsCli& o) {
         report["target_missed"] = missed;
     }
     if (!o.report.empty()) {
-        if (auto w = writeFileAtomic(o.report, report.dump(2) + "\n"); !w) {
+        if (auto w = writeFileAtomic(o.report, jsonText(report, 2) + "\n"); !w) {
             return fail(w.error(), "--report: ");
         }
     }
     if (!missed.empty()) {
-        std::fprintf(stderr, "probekit bake: %s (%s is written, for inspection)\n", missed.c_str(),
-                     o.output.c_str());
+        printError("bake", missed + " (" + o.output + " is written, for inspection)");
         return kExitFailure;
     }
     return kExitOk;
@@ -620,7 +624,7 @@ void addSceneCommand(CLI::App& app, Command& selected) {
     cmd->callback([o, &selected] {
         selected = [o] {
             if (auto w = baker::writeGeneratedScene(o->name, o->output); !w) {
-                std::fprintf(stderr, "probekit scene: %s\n", w.error().message.c_str());
+                printError("scene", w.error().message);
                 return kExitFailure;
             }
             std::printf("wrote %s\n", o->output.c_str());
@@ -646,13 +650,13 @@ void addBenchRaysCommand(CLI::App& app, Command& selected) {
         selected = [o] {
             Result<baker::Scene> scene = baker::loadGltf(o->scene);
             if (!scene) {
-                std::fprintf(stderr, "probekit bench-rays: %s\n", scene.error().message.c_str());
+                printError("bench-rays", scene.error().message);
                 return kExitFailure;
             }
             Result<baker::RayThroughput> r =
                 baker::measureRayThroughput(scene.value(), o->rays, o->threads);
             if (!r) {
-                std::fprintf(stderr, "probekit bench-rays: %s\n", r.error().message.c_str());
+                printError("bench-rays", r.error().message);
                 return kExitFailure;
             }
             const nlohmann::json j = {
@@ -661,7 +665,7 @@ void addBenchRaysCommand(CLI::App& app, Command& selected) {
                 {"threads", r.value().threads},
                 {"closest_hit_mrays_per_second", r.value().closestHitMraysPerSec},
                 {"occlusion_mrays_per_second", r.value().occlusionMraysPerSec}};
-            std::printf("%s\n", j.dump().c_str());
+            std::printf("%s\n", jsonText(j).c_str());
             return kExitOk;
         };
     });

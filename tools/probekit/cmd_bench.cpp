@@ -19,6 +19,7 @@
 #include "probekit/formats/pvol.hpp"
 #include "probekit/formats/sh.hpp"
 #include "probekit/runtime/compare.hpp"
+#include "terminal_text.hpp"
 
 namespace probekit::cli {
 namespace {
@@ -294,7 +295,7 @@ constexpr const char* kCsvHeader =
 
 int runBench(const BenchOptions& o) {
     const auto fail = [](const std::string& message) {
-        std::fprintf(stderr, "probekit bench: %s\n", message.c_str());
+        printError("bench", message);
         return kExitFailure;
     };
     Result<baker::BakeConfig> loaded = o.config.empty()
@@ -399,7 +400,8 @@ int runBench(const BenchOptions& o) {
                    ",0,0,nan,nan,nan,nan,nan,0," + csvField("bake failed: " + r.error().message) +
                    "\n";
             std::fprintf(stderr, "bench [%zu/%zu] %s %s: bake failed: %s\n", ri + 1, runs.size(),
-                         run.method.c_str(), run.parameters.c_str(), r.error().message.c_str());
+                         run.method.c_str(), run.parameters.c_str(),
+                         terminalText(r.error().message).c_str());
         }
         for (const Variant variant : kVariants) {
             if (!r) {
@@ -417,7 +419,7 @@ int runBench(const BenchOptions& o) {
                        csvField("saturated: " + packed.error().message) + "\n";
                 std::fprintf(stderr, "bench [%zu/%zu] %s %s %s %s: %s\n", ri + 1, runs.size(),
                              run.method.c_str(), run.parameters.c_str(), format.c_str(),
-                             order.c_str(), packed.error().message.c_str());
+                             order.c_str(), terminalText(packed.error().message).c_str());
                 continue;
             }
             Result<runtime::VolumeError> e =

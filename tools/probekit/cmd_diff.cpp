@@ -8,6 +8,7 @@
 #include "commands.hpp"
 #include "probekit/formats/pvol.hpp"
 #include "probekit/runtime/compare.hpp"
+#include "terminal_text.hpp"
 
 namespace probekit::cli {
 
@@ -35,19 +36,18 @@ void addDiffCommand(CLI::App& app, Command& selected) {
         selected = [o] {
             Result<PvolFile> test = readPvol(o->test);
             if (!test) {
-                std::fprintf(stderr, "probekit diff: %s\n", test.error().message.c_str());
+                printError("diff", test.error().message);
                 return kExitFailure;
             }
             Result<PvolFile> ref = readPvol(o->reference);
             if (!ref) {
-                std::fprintf(stderr, "probekit diff: %s\n", ref.error().message.c_str());
+                printError("diff", ref.error().message);
                 return kExitFailure;
             }
             Result<runtime::VolumeError> e =
                 runtime::compareVolumes(test.value().volumes, ref.value().volumes);
             if (!e) {
-                std::fprintf(stderr, "probekit diff: %s vs %s: %s\n", o->test.c_str(),
-                             o->reference.c_str(), e.error().message.c_str());
+                printError("diff", o->test + " vs " + o->reference + ": " + e.error().message);
                 return kExitFailure;
             }
             const runtime::VolumeError& v = e.value();
@@ -62,7 +62,7 @@ void addDiffCommand(CLI::App& app, Command& selected) {
                 j["tolerance"] = o->tolerance;
                 j["pass"] = pass;
             }
-            std::printf("%s\n", j.dump().c_str());
+            std::printf("%s\n", jsonText(j).c_str());
             return pass ? kExitOk : kExitFailure;
         };
     });

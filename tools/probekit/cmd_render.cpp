@@ -17,8 +17,7 @@
 #include <string>
 #include <vector>
 
-#include <unistd.h>
-
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
@@ -31,6 +30,7 @@
 #include "probekit/runtime/gpu_volumes.hpp"
 #include "probekit/runtime/renderer.hpp"
 #include "probekit/runtime/tonemap.hpp"
+#include "terminal_text.hpp"
 
 namespace probekit::cli {
 namespace {
@@ -169,8 +169,8 @@ Display chooseDisplay(const RenderOptions& o, const runtime::Frame& frame) {
 }
 
 // Writes RGB as 8-bit sRGB PNG (Display's mapping) or float EXR (linear, scaled by 2^--exposure
-// only, so its values stay radiance or irradiance), atomically: a temporary file in the same
-// directory, renamed over the target only once complete.
+// only, so its values stay radiance or irradiance), atomically (writeFileAtomic). `error` gets a
+// message that names the path.
 bool writeImage(const std::string& path, const runtime::Frame& frame, const RenderOptions& o,
                 const Display& display, std::string& error) {
     const std::string ext = extensionOf(path);
@@ -195,14 +195,13 @@ bool writeImage(const std::string& path, const runtime::Frame& frame, const Rend
                 uint8_t(std::lround(runtime::srgbEncode(shown[k]) * 255.0f));
         }
     }
-    const std::filesystem::path target(path);
-    const std::filesystem::path directory =
-        target.has_parent_path() ? target.parent_path() : std::filesystem::path(".");
-    const std::filesystem::path temp =
-        directory / ("." + target.filename().string() + ".tmp." + std::to_string(::getpid()));
+    // Encoded in memory and written by writeFileAtomic, so an image follows the same output rule
+    // (regular files only, links followed) and interrupt cleanup as every other output.
+    std::vector<unsigned char> bytes;
+    OIIO::Filesystem::IOVecOutput proxy(bytes);
     std::unique_ptr<OIIO::ImageOutput> out = OIIO::ImageOutput::create(png ? "png" : "openexr");
     if (!out) {
-        error = "no OpenImageIO writer for " + ext + " (" + OIIO::geterror() + ")";
+        error = path + ": no OpenImageIO writer for " + ext + " (" + OIIO::geterror() + ")";
         return false;
     }
     OIIO::ImageSpec spec(int(frame.width), int(frame.height), 3,
@@ -210,27 +209,23 @@ bool writeImage(const std::string& path, const runtime::Frame& frame, const Rend
     if (png) {
         spec.attribute("oiio:ColorSpace", "sRGB");
     }
-    const bool ok = out->open(temp.string(), spec) &&
+    const bool ok = out->set_ioproxy(&proxy) && out->open(path, spec) &&
                     (png ? out->write_image(OIIO::TypeDesc::UINT8, encoded.data())
                          : out->write_image(OIIO::TypeDesc::FLOAT, linear.data())) &&
                     out->close();
     if (!ok) {
-        error = "cannot write the image (" + out->geterror() + ")";
-        std::filesystem::remove(temp);
+        error = path + ": cannot encode the image (" + out->geterror() + ")";
         return false;
     }
-    std::error_code rename_error;
-    std::filesystem::rename(temp, target, rename_error);
-    if (rename_error) {
-        error = "cannot rename the finished image into place (" + rename_error.message() + ")";
-        std::filesystem::remove(temp);
+    if (Result<void> written = writeFileAtomic(path, std::span<const uint8_t>(bytes)); !written) {
+        error = written.error().message;
         return false;
     }
     return true;
 }
 
 int fail(const std::string& message) {
-    std::fprintf(stderr, "probekit render: %s\n", message.c_str());
+    printError("render", message);
     return kExitFailure;
 }
 
@@ -245,7 +240,7 @@ Result<baker::Scene> loadScene(const RenderOptions& o) {
     Result<baker::Scene> scene = baker::loadGltf(o.scene);
     if (scene) {
         for (const std::string& w : scene.value().warnings) {
-            std::fprintf(stderr, "probekit render: warning: %s\n", w.c_str());
+            printError("render", "warning: " + w);
         }
     }
     return scene;
@@ -275,8 +270,7 @@ Result<std::unique_ptr<runtime::GpuContext>> createContext() {
     runtime::ContextOptions context_options;
     context_options.onMessage = [](runtime::MessageSeverity severity, std::string_view message) {
         if (severity != runtime::MessageSeverity::Info) {
-            std::fprintf(stderr, "probekit render: vulkan: %.*s\n", int(message.size()),
-                         message.data());
+            printError("render", "vulkan: " + std::string(message));
         }
     };
     return runtime::GpuContext::create(context_options);
@@ -329,8 +323,7 @@ Result<Environment> chooseEnvironment(const RenderOptions& o, const BakeMetadata
     }
     Result<Environment> loaded = baker::makeEnvironment(config.value().environment);
     if (!loaded && !o.env) {
-        std::fprintf(stderr, "probekit render: warning: %s; the background stays black\n",
-                     loaded.error().message.c_str());
+        printError("render", "warning: " + loaded.error().message + "; the background stays black");
         return Environment{};
     }
     return loaded;
@@ -392,10 +385,9 @@ std::vector<PunctualLight> directLights(const RenderOptions& o, const baker::Sce
     std::vector<PunctualLight> lights;
     for (const PunctualLight& light : scene.lights) {
         if (lights.size() == runtime::kMaxRenderLights) {
-            std::fprintf(stderr,
-                         "probekit render: warning: %s: only the first %zu lights "
-                         "add direct light\n",
-                         o.scene.c_str(), runtime::kMaxRenderLights);
+            printError("render", "warning: " + o.scene + ": only the first " +
+                                     std::to_string(runtime::kMaxRenderLights) +
+                                     " lights add direct light");
             break;
         }
         lights.push_back(light);
@@ -607,16 +599,16 @@ int renderAndWrite(const RenderOptions& o, const runtime::GpuContext& gpu,
     std::string error;
     const Display display = chooseDisplay(o, frame.value());
     if (!writeImage(o.output, frame.value(), o, display, error)) {
-        return fail(o.output + ": " + error);
+        return fail(error);
     }
     if (bench) {
-        std::printf("%s\n", bench->dump().c_str());
+        std::printf("%s\n", jsonText(*bench).c_str());
         return kExitOk;
     }
     std::printf("wrote %s: %ux%u, %s view, %zu volume%s on %s; G-buffer %.2f ms, shading "
                 "%.2f ms\n",
-                o.output.c_str(), settings.width, settings.height, o.view.c_str(), volume_count,
-                volume_count == 1 ? "" : "s", gpu.deviceInfo().name.c_str(),
+                terminalText(o.output).c_str(), settings.width, settings.height, o.view.c_str(),
+                volume_count, volume_count == 1 ? "" : "s", gpu.deviceInfo().name.c_str(),
                 frame.value().timings.gbufferMs, frame.value().timings.shadeMs);
     if (extensionOf(o.output) == ".png") {
         std::printf("  display: %s, exposure %+.2f EV (%s)\n",
@@ -635,6 +627,10 @@ int renderAndWrite(const RenderOptions& o, const runtime::GpuContext& gpu,
 }
 
 int runRender(const RenderOptions& o) {
+    // A bad -o fails before any work.
+    if (Result<std::filesystem::path> target = resolveOutputPath(o.output); !target) {
+        return fail(target.error().message);
+    }
     Result<baker::Scene> scene = loadScene(o);
     if (!scene) {
         return fail(scene.error().message);

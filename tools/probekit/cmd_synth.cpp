@@ -10,6 +10,7 @@
 
 #include "commands.hpp"
 #include "probekit/formats/pvol.hpp"
+#include "terminal_text.hpp"
 
 namespace probekit::cli {
 namespace {
@@ -32,7 +33,7 @@ int runSynth(const SynthOptions& o) {
         grid::Aabb{glm::vec3(-2.0f, 0.0f, -2.0f), glm::vec3(2.0f, 2.0f, 2.0f)},
         glm::uvec3(o.resolution[0], o.resolution[1], o.resolution[2]), mode);
     if (!layout) {
-        std::fprintf(stderr, "probekit synth: --resolution: %s\n", layout.error().message.c_str());
+        printError("synth", "--resolution: " + layout.error().message);
         return kExitFailure;
     }
     VolumeDesc desc;
@@ -55,7 +56,7 @@ int runSynth(const SynthOptions& o) {
     }
     Result<Volume> volume = makeVolume(desc, probes);
     if (!volume) {
-        std::fprintf(stderr, "probekit synth: %s\n", volume.error().message.c_str());
+        printError("synth", volume.error().message);
         return kExitFailure;
     }
     PvolFile file;
@@ -68,7 +69,7 @@ int runSynth(const SynthOptions& o) {
     // No wall time in the file (bakeSeconds stays 0): the same flags give the same bytes.
     file.volumes.push_back(std::move(volume).value());
     if (auto w = writePvol(o.output, file); !w) {
-        std::fprintf(stderr, "probekit synth: %s\n", w.error().message.c_str());
+        printError("synth", w.error().message);
         return kExitFailure;
     }
     std::printf("wrote %s: %ux%ux%u %s probes, L%d, %s\n", o.output.c_str(), o.resolution[0],
