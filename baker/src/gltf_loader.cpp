@@ -34,11 +34,6 @@
 namespace probekit::baker {
 namespace {
 
-// What each kept vertex (position, uv, normal) and triangle (corners, material, node) adds to
-// the Scene, for the memory budget.
-constexpr uint64_t kSceneBytesPerVertex = sizeof(glm::vec3) + sizeof(glm::vec2) + sizeof(glm::vec3);
-constexpr uint64_t kSceneBytesPerTriangle = sizeof(glm::uvec3) + sizeof(uint32_t) + sizeof(int32_t);
-
 // Largest accessor without a bufferView (all zeros until sparse values apply) that we allocate;
 // 2^24 elements is far beyond any real sparse accessor.
 constexpr size_t kMaxUnbackedElements = size_t(1) << 24;
@@ -960,13 +955,13 @@ private:
 
         held.add(indices.size() * sizeof(uint32_t));
         // The rest, predicted from the counts: corners and the per-vertex work arrays while they
-        // live, and (at most) every vertex and triangle added to the Scene.
+        // live, and the Scene's arrays grown for (at most) every vertex and triangle.
         const size_t n = indices.size();
         const uint64_t triangle_count = mode == TINYGLTF_MODE_TRIANGLES ? n / 3 : n < 2 ? 0 : n - 2;
         const uint64_t work = triangle_count * sizeof(glm::uvec3) +
-                              vertex_count * (sizeof(glm::vec3) + sizeof(uint32_t) + 1);
-        const uint64_t growth =
-            vertex_count * kSceneBytesPerVertex + triangle_count * kSceneBytesPerTriangle;
+                              vertex_count * (sizeof(glm::vec3) + sizeof(uint32_t)) +
+                              vertex_count / 8 + 1;
+        const uint64_t growth = sceneGrowth(vertex_count, triangle_count);
         if (!m_budget.fits(work + growth)) {
             fail(ErrorCode::OutOfRange,
                  m_budget.refusal(field + " (" + std::to_string(vertex_count) + " vertices, " +
@@ -975,12 +970,12 @@ private:
                                   work + growth));
         }
         held.add(work);
-        const size_t scene_vertices = m_scene.positions.size();
-        const size_t scene_triangles = m_scene.triangles.size();
+        growScene(vertex_count, triangle_count);
 
         // Triangle corners, following the glTF 2.0 specification's definitions of strips
         // (odd triangles swap their first two corners to keep the winding) and fans.
         std::vector<glm::uvec3> corners;
+        corners.reserve(triangle_count);
         if (mode == TINYGLTF_MODE_TRIANGLES) {
             if (n % 3 != 0) {
                 warn(field + ": " + std::to_string(n) +
@@ -1050,8 +1045,42 @@ private:
             warn(field + ": " + std::to_string(skipped) +
                  " triangles with a non-finite (NaN or infinite) vertex position or uv skipped");
         }
-        m_budget.add((m_scene.positions.size() - scene_vertices) * kSceneBytesPerVertex +
-                     (m_scene.triangles.size() - scene_triangles) * kSceneBytesPerTriangle);
+    }
+
+    // The Scene's arrays grow as std::vector's do (to at least twice their capacity), but once
+    // per primitive and predicted: the new storage must fit while the old still lives, and stays
+    // charged to the budget.
+    template <class T>
+    static uint64_t grownCapacity(const std::vector<T>& v, uint64_t more) {
+        return v.size() + more <= v.capacity()
+                   ? v.capacity()
+                   : std::max<uint64_t>(v.size() + more, 2 * uint64_t(v.capacity()));
+    }
+    template <class T>
+    static uint64_t growthBytes(const std::vector<T>& v, uint64_t more) {
+        const uint64_t capacity = grownCapacity(v, more);
+        return capacity == v.capacity() ? 0 : capacity * sizeof(T);
+    }
+    uint64_t sceneGrowth(uint64_t vertices, uint64_t triangles) const {
+        return growthBytes(m_scene.positions, vertices) + growthBytes(m_scene.uvs, vertices) +
+               growthBytes(m_scene.normals, vertices) + growthBytes(m_scene.triangles, triangles) +
+               growthBytes(m_scene.triangleMaterial, triangles) +
+               growthBytes(m_scene.triangleNode, triangles);
+    }
+    template <class T>
+    void grow(std::vector<T>& v, uint64_t more) {
+        const uint64_t before = v.capacity() * sizeof(T);
+        v.reserve(grownCapacity(v, more));
+        m_budget.add(v.capacity() * sizeof(T));
+        m_budget.release(before);
+    }
+    void growScene(uint64_t vertices, uint64_t triangles) {
+        grow(m_scene.positions, vertices);
+        grow(m_scene.uvs, vertices);
+        grow(m_scene.normals, vertices);
+        grow(m_scene.triangles, triangles);
+        grow(m_scene.triangleMaterial, triangles);
+        grow(m_scene.triangleNode, triangles);
     }
 
     // ---- KHR_lights_punctual ----

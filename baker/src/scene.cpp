@@ -37,7 +37,7 @@ glm::vec3 Scene::emissionAt(uint32_t tri, glm::vec2 bary) const {
 namespace {
 template <class T>
 uint64_t arrayBytes(const std::vector<T>& v) {
-    return uint64_t(v.size()) * sizeof(T);
+    return uint64_t(v.capacity()) * sizeof(T);
 }
 uint64_t imageBytes(const Image& image) {
     return arrayBytes(image.texels);

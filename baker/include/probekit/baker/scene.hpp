@@ -99,9 +99,10 @@ struct Scene {
     glm::vec3 emissionAt(uint32_t tri, glm::vec2 bary) const;
 };
 
-// The bytes a scene's arrays hold (vertices, triangles and their per-triangle ids, image texels,
-// nodes, materials, lights and the environment), counting elements, not allocator slack: what a
-// bake's memory model charges for the loaded scene.
+// The bytes a scene's arrays have allocated (vertices, triangles and their per-triangle ids,
+// image texels, nodes, materials, lights and the environment; the capacity, which loadGltf
+// reserves once per primitive): what a bake's memory model charges for the loaded scene. Strings
+// and the fixed-size members are left out.
 uint64_t sceneBytes(const Scene& scene);
 
 struct LoadOptions {
