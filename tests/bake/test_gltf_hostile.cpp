@@ -255,6 +255,10 @@ TEST(GltfHostile, UrisReachOnlyRegularFilesUnderTheSceneFolder) {
     // A path outside that does not exist gets the same answer: no existence oracle.
     const fs::path nowhere = bufferAt("nowhere.gltf", "../no-such-file.bin");
     EXPECT_EQ(loadError(nowhere), at(nowhere, "buffers[0].uri '../no-such-file.bin' " + outside));
+    // A decoded NUL would cut the path short where the file is opened.
+    const fs::path nul = bufferAt("nul.gltf", "inside.bin%00../secret.bin");
+    EXPECT_EQ(loadError(nul), at(nul, "buffers[0].uri 'inside.bin%00../secret.bin' holds a NUL "
+                                      "byte"));
     for (const fs::path& file : {dotdot, encoded, link}) {
         const std::string message = loadError(file);
         EXPECT_FALSE(contains(message, "SECRET")) << message;
