@@ -17,6 +17,10 @@ endif()
 # Baker-only dependencies. They stay behind baker/'s .cpp files (never in a public header).
 find_package(embree 3 CONFIG REQUIRED)
 find_package(TinyGLTF CONFIG REQUIRED)
+# stb_image, which libtinygltf decodes images with (Debian's libstb0, a dependency of
+# libtinygltf): the glTF loader reads an image's dimensions with it before decoding. Only the
+# shared library is needed (no header, so no libstb-dev): hence the versioned file name.
+find_library(PROBEKIT_STB_LIBRARY NAMES stb libstb.so.0 REQUIRED)
 find_package(OpenImageIO CONFIG REQUIRED)
 # Debian's OpenImageIO config names /usr/include/opencv4, which no package here installs;
 # drop it from the imported target so consumers do not get a missing include directory.

@@ -1,11 +1,13 @@
 // glTF 2.0 (.gltf / .glb) -> probekit::baker::Scene, through tinygltf.
 //
-// tinygltf parses the JSON, resolves buffers (data: URIs, external files, the GLB BIN chunk) and
-// decodes images with its built-in stb_image loader (Debian's libtinygltf links libstb, so the
-// default LoadImageData callback works; PNG/JPEG come back as 8- or 16-bit RGBA). Everything
-// tinygltf does not check — accessor ranges, strides, index values, node graphs, light and
-// material values — is checked here, so a malformed file gives an error naming the file and the
-// field, never a crash.
+// Before tinygltf sees the file, gltf_input.cpp checks the GLB container, the JSON's nesting
+// depth and the kinds of the fields read here, the glTF version and the required extensions,
+// and gltf_io.cpp's callbacks hold every buffer and image read to the scene's folder and the
+// memory budget. tinygltf then parses the JSON, resolves buffers (data: URIs, external files, the
+// GLB BIN chunk) and decodes images with its stb_image loader (PNG/JPEG come back as 8- or 16-bit
+// RGBA). Everything tinygltf does not check (accessor ranges, strides, index values, node graphs,
+// light and material values, the bytes each accessor expands to) is checked here, so a malformed
+// file gives an error naming the file and the field, never a crash.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -25,31 +27,20 @@
 #include <glm/matrix.hpp>
 #include <tiny_gltf.h>
 
+#include "gltf_input.hpp"
 #include "probekit/baker/scene.hpp"
 #include "probekit/formats/pvol.hpp"
 
 namespace probekit::baker {
 namespace {
 
-// Extensions whose presence in extensionsRequired we honour. KHR_mesh_quantization only widens
-// the accessor component types allowed for POSITION/TEXCOORD, which readAccessor handles in
-// general. KHR_texture_transform is deliberately absent: uvs are used untransformed.
-constexpr std::array<std::string_view, 3> kSupportedRequiredExtensions = {
-    "KHR_lights_punctual",
-    "KHR_materials_emissive_strength",
-    "KHR_mesh_quantization",
-};
-
 // Largest accessor without a bufferView (all zeros until sparse values apply) that we allocate;
 // 2^24 elements is far beyond any real sparse accessor.
 constexpr size_t kMaxUnbackedElements = size_t(1) << 24;
 
-// Thrown inside this file only and turned into a Result at loadGltf's boundary, so the many
-// checks below stay one line each.
-struct LoadError {
-    ErrorCode code;
-    std::string message;
-};
+using gltf::LoadError;
+using gltf::MemoryBudget;
+using gltf::numberText;
 
 std::string trimmed(std::string text) {
     while (!text.empty() && (text.back() == '\n' || text.back() == '\r' || text.back() == ' ')) {
@@ -205,8 +196,9 @@ struct BoundsBuilder {
 
 class GltfLoader {
 public:
-    GltfLoader(const tinygltf::Model& model, std::string file)
-        : m_model(model), m_file(std::move(file)), m_image_slots(model.images.size(), -1) {}
+    GltfLoader(const tinygltf::Model& model, std::string file, MemoryBudget& budget)
+        : m_model(model), m_file(std::move(file)), m_budget(budget),
+          m_image_slots(model.images.size(), -1) {}
 
     Scene load(std::optional<int> scene_index, uint64_t source_hash,
                const std::string& tinygltf_warnings) {
@@ -218,8 +210,8 @@ public:
                 warn("tinygltf: " + trimmed(line));
             }
         }
-        checkRequiredExtensions();
         loadMaterials();
+        checkNodeForest();
         const std::vector<int> roots = sceneRoots(scene_index);
         const std::vector<int> reachable = traverse(roots);
         for (const int node_index : reachable) {
@@ -243,16 +235,6 @@ private:
         throw LoadError{code, m_file + ": " + what};
     }
     void warn(const std::string& what) { m_scene.warnings.push_back(m_file + ": " + what); }
-
-    void checkRequiredExtensions() const {
-        for (const std::string& name : m_model.extensionsRequired) {
-            if (std::find(kSupportedRequiredExtensions.begin(), kSupportedRequiredExtensions.end(),
-                          name) == kSupportedRequiredExtensions.end()) {
-                fail(ErrorCode::InvalidArgument,
-                     "extensionsRequired: unsupported required extension " + name);
-            }
-        }
-    }
 
     // ---- materials and textures ----
 
@@ -313,6 +295,13 @@ private:
                     fail(ErrorCode::OutOfRange, field + ".emissiveFactor must be finite and >= 0");
                 }
                 material.emission[c] = static_cast<float>(emissive[c] * strength);
+                if (!std::isfinite(material.emission[c])) {
+                    fail(ErrorCode::NonFinite,
+                         field + ".emissiveFactor[" + std::to_string(c) + "] " +
+                             numberText(emissive[c]) +
+                             " x KHR_materials_emissive_strength.emissiveStrength " +
+                             numberText(strength) + " overflows a 32-bit float");
+                }
             }
 
             material.baseColorTexCoord = source.pbrMetallicRoughness.baseColorTexture.texCoord;
@@ -427,6 +416,62 @@ private:
 
     // ---- node graph ----
 
+    // glTF nodes form a forest: every node has at most one parent and no node is its own
+    // ancestor. Checked over all nodes, not only those a scene reaches, since without `scenes`
+    // the roots are the nodes nobody lists as a child, and a cycle has none of those: it would
+    // vanish from the scene without a word.
+    void checkNodeForest() const {
+        const size_t node_count = m_model.nodes.size();
+        std::vector<int> parent(node_count, -1);
+        for (size_t i = 0; i < node_count; ++i) {
+            for (const int child : m_model.nodes[i].children) {
+                if (child < 0 || static_cast<size_t>(child) >= node_count) {
+                    fail(ErrorCode::OutOfRange,
+                         "nodes[" + std::to_string(i) + "].children references node " +
+                             std::to_string(child) + ", which is out of range (" +
+                             std::to_string(node_count) + " nodes)");
+                }
+                int& p = parent[static_cast<size_t>(child)];
+                if (p >= 0) {
+                    fail(ErrorCode::InvalidArgument,
+                         "node " + std::to_string(child) + " is a child of both node " +
+                             std::to_string(p) + " and node " + std::to_string(i) +
+                             " (glTF nodes form trees: one parent at most)");
+                }
+                p = static_cast<int>(i);
+            }
+        }
+        // With one parent each, a cycle is a closed chain of parent links. Walk up from every
+        // node; meeting a node of the current walk closes a cycle.
+        std::vector<uint32_t> walk_of(node_count, 0); // 0: not yet walked
+        for (size_t start = 0; start < node_count; ++start) {
+            const uint32_t walk = static_cast<uint32_t>(start) + 1;
+            int node = static_cast<int>(start);
+            while (node >= 0 && walk_of[size_t(node)] == 0) {
+                walk_of[size_t(node)] = walk;
+                node = parent[size_t(node)];
+            }
+            if (node < 0 || walk_of[size_t(node)] != walk) {
+                continue; // reached a root, or a chain already walked
+            }
+            // The cycle through `node`, listed from its smallest index in parent -> child order.
+            std::vector<int> cycle = {node};
+            for (int up = parent[size_t(node)]; up != node; up = parent[size_t(up)]) {
+                cycle.push_back(up);
+            }
+            std::reverse(cycle.begin(), cycle.end());
+            std::rotate(cycle.begin(), std::min_element(cycle.begin(), cycle.end()), cycle.end());
+            std::string chain;
+            for (const int n : cycle) {
+                chain += "node " + std::to_string(n) + " -> ";
+            }
+            fail(ErrorCode::InvalidArgument, "the node hierarchy has a cycle: " + chain + "node " +
+                                                 std::to_string(cycle.front()) +
+                                                 " (each listed in the children of the one "
+                                                 "before)");
+        }
+    }
+
     std::vector<int> sceneRoots(std::optional<int> requested) {
         const int scene_count = static_cast<int>(m_model.scenes.size());
         if (requested) {
@@ -539,8 +584,8 @@ private:
             if (visited[static_cast<size_t>(index)]) {
                 fail(ErrorCode::InvalidArgument,
                      "node " + std::to_string(index) +
-                         " is reached twice (a cycle, a node with two parents, or a root listed "
-                         "twice)");
+                         " is reached twice (a root listed twice, or a root that is also a "
+                         "child)");
             }
             visited[static_cast<size_t>(index)] = true;
             m_world[static_cast<size_t>(index)] = parent * localMatrix(index);
@@ -643,6 +688,20 @@ private:
         const size_t element_size = components * component_size;
         const size_t count = accessor.count;
         const bool normalized = accessor.normalized;
+        // Predicted before the vector is allocated, so that no count in the file can make the
+        // expansion exceed the budget (a sparse accessor's zeros are backed by nothing).
+        auto checkBudget = [&] {
+            const uint64_t per_element = uint64_t(components) * sizeof(T);
+            const uint64_t bytes =
+                count > UINT64_MAX / per_element ? UINT64_MAX : count * per_element;
+            if (!m_budget.fits(bytes)) {
+                fail(ErrorCode::OutOfRange,
+                     m_budget.refusal(field + " (" + std::to_string(count) + " x " +
+                                          std::to_string(components) + " x " +
+                                          std::to_string(sizeof(T)) + " bytes, expanded)",
+                                      bytes));
+            }
+        };
 
         std::vector<T> out;
         if (accessor.bufferView >= 0) {
@@ -657,6 +716,7 @@ private:
                          " bytes)");
             }
             checkRange(view.size(), accessor.byteOffset, count, stride, element_size, field);
+            checkBudget();
             out.resize(count * components);
             for (size_t i = 0; i < count; ++i) {
                 const uint8_t* element = view.data() + accessor.byteOffset + i * stride;
@@ -679,6 +739,7 @@ private:
                          " is too large for an accessor without a bufferView (at most " +
                          std::to_string(kMaxUnbackedElements) + ")");
             }
+            checkBudget();
             out.assign(count * components, T(0));
         }
 
@@ -833,14 +894,34 @@ private:
             material_index = static_cast<uint32_t>(primitive.material);
         }
 
+        if (primitive.extensions.count("KHR_draco_mesh_compression")) {
+            // gltf_input.cpp has checked that the uncompressed fallback exists.
+            warn(field + " is compressed with KHR_draco_mesh_compression, which probekit does not "
+                         "decode; its uncompressed accessors are loaded instead");
+        }
+
+        // Every array below is charged to the budget while it lives (readAccessor checks each
+        // before allocating it); the Scene's growth stays charged.
+        struct Held {
+            MemoryBudget& budget;
+            uint64_t bytes = 0;
+            void add(uint64_t n) {
+                budget.add(n);
+                bytes += n;
+            }
+            ~Held() { budget.release(bytes); }
+        } held{m_budget};
         const std::vector<float> positions = readAccessor<float>(
             position_it->second, TINYGLTF_TYPE_VEC3, false, field + " POSITION");
+        held.add(positions.size() * sizeof(float));
         const size_t vertex_count = positions.size() / 3;
         const std::vector<float> uvs =
             vertexAttribute(primitive, "TEXCOORD_0", TINYGLTF_TYPE_VEC2, 2, vertex_count, field);
+        held.add(uvs.size() * sizeof(float));
         // Vertex normals (the renderer's smooth shading; light transport uses face normals).
         const std::vector<float> normals =
             vertexAttribute(primitive, "NORMAL", TINYGLTF_TYPE_VEC3, 3, vertex_count, field);
+        held.add(normals.size() * sizeof(float));
         // Normals transform by the inverse transpose of the node's matrix.
         const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(glm::dmat3(world)));
 
@@ -860,16 +941,41 @@ private:
             if (vertex_count > std::numeric_limits<uint32_t>::max()) {
                 fail(ErrorCode::OutOfRange, field + ": too many vertices");
             }
+            if (!m_budget.fits(vertex_count * sizeof(uint32_t))) {
+                fail(ErrorCode::OutOfRange,
+                     m_budget.refusal(field + " (" + std::to_string(vertex_count) +
+                                          " vertices, listed as indices)",
+                                      vertex_count * sizeof(uint32_t)));
+            }
             indices.resize(vertex_count);
             for (size_t i = 0; i < vertex_count; ++i) {
                 indices[i] = static_cast<uint32_t>(i);
             }
         }
 
+        held.add(indices.size() * sizeof(uint32_t));
+        // The rest, predicted from the counts: corners and the per-vertex work arrays while they
+        // live, and the Scene's arrays grown for (at most) every vertex and triangle.
+        const size_t n = indices.size();
+        const uint64_t triangle_count = mode == TINYGLTF_MODE_TRIANGLES ? n / 3 : n < 2 ? 0 : n - 2;
+        const uint64_t work = triangle_count * sizeof(glm::uvec3) +
+                              vertex_count * (sizeof(glm::vec3) + sizeof(uint32_t)) +
+                              vertex_count / 8 + 1;
+        const uint64_t growth = sceneGrowth(vertex_count, triangle_count);
+        if (!m_budget.fits(work + growth)) {
+            fail(ErrorCode::OutOfRange,
+                 m_budget.refusal(field + " (" + std::to_string(vertex_count) + " vertices, " +
+                                      std::to_string(triangle_count) +
+                                      " triangles, expanded and added to the scene)",
+                                  work + growth));
+        }
+        held.add(work);
+        growScene(vertex_count, triangle_count);
+
         // Triangle corners, following the glTF 2.0 specification's definitions of strips
         // (odd triangles swap their first two corners to keep the winding) and fans.
         std::vector<glm::uvec3> corners;
-        const size_t n = indices.size();
+        corners.reserve(triangle_count);
         if (mode == TINYGLTF_MODE_TRIANGLES) {
             if (n % 3 != 0) {
                 warn(field + ": " + std::to_string(n) +
@@ -941,6 +1047,42 @@ private:
         }
     }
 
+    // The Scene's arrays grow as std::vector's do (to at least twice their capacity), but once
+    // per primitive and predicted: the new storage must fit while the old still lives, and stays
+    // charged to the budget.
+    template <class T>
+    static uint64_t grownCapacity(const std::vector<T>& v, uint64_t more) {
+        return v.size() + more <= v.capacity()
+                   ? v.capacity()
+                   : std::max<uint64_t>(v.size() + more, 2 * uint64_t(v.capacity()));
+    }
+    template <class T>
+    static uint64_t growthBytes(const std::vector<T>& v, uint64_t more) {
+        const uint64_t capacity = grownCapacity(v, more);
+        return capacity == v.capacity() ? 0 : capacity * sizeof(T);
+    }
+    uint64_t sceneGrowth(uint64_t vertices, uint64_t triangles) const {
+        return growthBytes(m_scene.positions, vertices) + growthBytes(m_scene.uvs, vertices) +
+               growthBytes(m_scene.normals, vertices) + growthBytes(m_scene.triangles, triangles) +
+               growthBytes(m_scene.triangleMaterial, triangles) +
+               growthBytes(m_scene.triangleNode, triangles);
+    }
+    template <class T>
+    void grow(std::vector<T>& v, uint64_t more) {
+        const uint64_t before = v.capacity() * sizeof(T);
+        v.reserve(grownCapacity(v, more));
+        m_budget.add(v.capacity() * sizeof(T));
+        m_budget.release(before);
+    }
+    void growScene(uint64_t vertices, uint64_t triangles) {
+        grow(m_scene.positions, vertices);
+        grow(m_scene.uvs, vertices);
+        grow(m_scene.normals, vertices);
+        grow(m_scene.triangles, triangles);
+        grow(m_scene.triangleMaterial, triangles);
+        grow(m_scene.triangleNode, triangles);
+    }
+
     // ---- KHR_lights_punctual ----
 
     void loadLight(int node_index, const tinygltf::Value& extension, const glm::dmat4& world) {
@@ -986,11 +1128,24 @@ private:
         if (!std::isfinite(source.intensity) || source.intensity < 0) {
             fail(ErrorCode::OutOfRange, field + ".intensity must be finite and >= 0");
         }
+        // Finite doubles, but the light keeps floats (largest 3.4e38): an intensity of 1e300
+        // would become infinite radiance and NaN SH coefficients far from here.
         light.intensity = glm::vec3(colour * source.intensity);
+        if (!isFinite(glm::dvec3(light.intensity)) || !isFinite(glm::dvec3(glm::vec3(colour))) ||
+            !std::isfinite(static_cast<float>(source.intensity))) {
+            fail(ErrorCode::NonFinite, field + ".intensity " + numberText(source.intensity) +
+                                           " x color (" + numberText(colour.x) + ", " +
+                                           numberText(colour.y) + ", " + numberText(colour.z) +
+                                           ") overflows a 32-bit float");
+        }
         if (!std::isfinite(source.range) || source.range < 0) {
             fail(ErrorCode::OutOfRange, field + ".range must be finite and > 0 (absent: infinite)");
         }
         light.range = static_cast<float>(source.range);
+        if (!std::isfinite(light.range)) {
+            fail(ErrorCode::NonFinite,
+                 field + ".range " + numberText(source.range) + " overflows a 32-bit float");
+        }
 
         if (light.type == LightType::Spot) {
             const double inner = source.spot.innerConeAngle;
@@ -1007,6 +1162,10 @@ private:
         }
 
         light.position = glm::vec3(world[3]);
+        if (!isFinite(glm::dvec3(light.position))) {
+            fail(ErrorCode::NonFinite,
+                 node_field + ": the node's world position overflows a 32-bit float");
+        }
         // Lights shine along the node's local -Z; the linear part of the world matrix carries
         // it (normalised, since a scaled node must not change the light).
         const glm::dvec3 direction = glm::dmat3(world) * glm::dvec3(0.0, 0.0, -1.0);
@@ -1026,6 +1185,7 @@ private:
 
     const tinygltf::Model& m_model;
     std::string m_file;
+    MemoryBudget& m_budget;
     Scene m_scene;
     std::vector<int> m_image_slots;         // glTF image -> Scene::images index, -1 until decoded
     std::vector<glm::dmat4> m_world;        // per glTF node, valid for reachable nodes
@@ -1035,43 +1195,86 @@ private:
 
 } // namespace
 
-Result<Scene> loadGltf(const std::filesystem::path& path, const LoadOptions& options) {
-    const std::string file = path.string();
+Result<Scene> loadGltfBytes(std::span<const uint8_t> bytes, const std::filesystem::path& name,
+                            const LoadOptions& options) {
+    const std::string file = name.string();
     try {
-        std::error_code ec;
-        if (!std::filesystem::is_regular_file(path, ec)) {
-            return makeError(ErrorCode::Io, file + ": no such file");
+        MemoryBudget budget(options.maxMemoryBytes);
+        if (!budget.fits(bytes.size())) {
+            return makeError(ErrorCode::OutOfRange,
+                             file + ": " + budget.refusal("the file", bytes.size()));
         }
-        std::ifstream stream(path, std::ios::binary);
-        std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(stream)),
-                                   std::istreambuf_iterator<char>());
-        if (!stream.good() && !stream.eof()) {
-            return makeError(ErrorCode::Io, file + ": cannot read the file");
-        }
+        budget.add(bytes.size());
         if (bytes.size() > std::numeric_limits<unsigned int>::max()) {
             return makeError(ErrorCode::OutOfRange, file + ": larger than 4 GiB");
         }
-        const uint64_t hash = xxhash64(bytes);
+        gltf::AssetFolder folder(name, options.assetRoots);
+        if (!folder.unresolvedRoots().empty()) {
+            return makeError(ErrorCode::Io, "LoadOptions::assetRoots: '" +
+                                                folder.unresolvedRoots().front() +
+                                                "' is not an existing folder");
+        }
 
         // The GLB magic decides, whatever the extension; a .glb without it is reported as such
-        // by tinygltf's binary parser.
+        // by the container check.
         const bool has_magic = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
-        std::string extension = path.extension().string();
+        std::string extension = name.extension().string();
         std::transform(extension.begin(), extension.end(), extension.begin(),
                        [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
         const bool binary = has_magic || extension == ".glb";
 
+        gltf::GlbChunks glb;
+        std::span<const uint8_t> text = bytes;
+        uint64_t text_offset = 0;
+        if (binary) {
+            glb = gltf::checkGlbContainer(bytes, file);
+            text = glb.json;
+            text_offset = glb.jsonOffset;
+        }
+        const uint64_t values = gltf::checkJsonNesting(text, text_offset, file);
+        // Two parses hold the document (the check's, then tinygltf's with its Values); the
+        // first is gone before the second, and some of tinygltf's stays in the model.
+        const uint64_t document_bytes = values > UINT64_MAX / gltf::kJsonValueBytes
+                                            ? UINT64_MAX
+                                            : values * gltf::kJsonValueBytes;
+        if (!budget.fits(document_bytes)) {
+            return makeError(ErrorCode::OutOfRange,
+                             file + ": " +
+                                 budget.refusal("the JSON document (" + std::to_string(values) +
+                                                    " values, parsed)",
+                                                document_bytes));
+        }
+        budget.add(document_bytes);
+        {
+            nlohmann::json document;
+            try {
+                document = nlohmann::json::parse(text.begin(), text.end());
+            } catch (const nlohmann::json::exception& e) {
+                return makeError(ErrorCode::InvalidArgument,
+                                 file + ": not valid JSON: " + std::string(e.what()));
+            }
+            gltf::checkDocument(document, file, binary ? &glb : nullptr, folder, budget);
+        }
+
         tinygltf::TinyGLTF parser;
+        gltf::IoContext io{folder, budget, file, std::nullopt};
+        gltf::installIoCallbacks(parser, io);
         tinygltf::Model model;
         std::string error;
         std::string warning;
-        const std::string base_dir = path.parent_path().string();
         const bool parsed =
-            binary ? parser.LoadBinaryFromMemory(&model, &error, &warning, bytes.data(),
-                                                 static_cast<unsigned int>(bytes.size()), base_dir)
-                   : parser.LoadASCIIFromString(&model, &error, &warning,
-                                                reinterpret_cast<const char*>(bytes.data()),
-                                                static_cast<unsigned int>(bytes.size()), base_dir);
+            binary
+                ? parser.LoadBinaryFromMemory(&model, &error, &warning, bytes.data(),
+                                              static_cast<unsigned int>(bytes.size()),
+                                              folder.base())
+                : parser.LoadASCIIFromString(&model, &error, &warning,
+                                             reinterpret_cast<const char*>(text.data()),
+                                             static_cast<unsigned int>(text.size()), folder.base());
+        if (io.refusal) {
+            // A file the rule refused, or an image refused before decoding: say why, rather
+            // than tinygltf's "File not found" or nothing (it only warns about images).
+            throw *io.refusal;
+        }
         if (!parsed) {
             std::string message = trimmed(error);
             if (!trimmed(warning).empty()) {
@@ -1080,8 +1283,8 @@ Result<Scene> loadGltf(const std::filesystem::path& path, const LoadOptions& opt
             return makeError(ErrorCode::InvalidArgument,
                              file + ": " + (message.empty() ? "tinygltf failed" : message));
         }
-        GltfLoader loader(model, file);
-        Result<Scene> scene = loader.load(options.sceneIndex, hash, warning);
+        GltfLoader loader(model, file, budget);
+        Result<Scene> scene = loader.load(options.sceneIndex, xxhash64(bytes), warning);
         if (scene) {
             applyUnitScale(scene.value(), options.scale);
             if (std::string w = implausibleSizeWarning(scene.value(), file); !w.empty()) {
@@ -1094,6 +1297,21 @@ Result<Scene> loadGltf(const std::filesystem::path& path, const LoadOptions& opt
     } catch (const std::exception& e) {
         return makeError(ErrorCode::InvalidArgument, file + ": " + e.what());
     }
+}
+
+Result<Scene> loadGltf(const std::filesystem::path& path, const LoadOptions& options) {
+    const std::string file = path.string();
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) {
+        return makeError(ErrorCode::Io, file + ": no such file");
+    }
+    // The budget here only bounds the read; loadGltfBytes charges the bytes again.
+    MemoryBudget read_budget(options.maxMemoryBytes);
+    Result<std::vector<uint8_t>> bytes = gltf::readRegularFile(path, file, read_budget);
+    if (!bytes) {
+        return bytes.error();
+    }
+    return loadGltfBytes(bytes.value(), path, options);
 }
 
 } // namespace probekit::baker

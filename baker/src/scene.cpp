@@ -34,6 +34,29 @@ glm::vec3 Scene::emissionAt(uint32_t tri, glm::vec2 bary) const {
            glm::vec3(images[m.emissiveTexture].sampleBilinear(interpolatedUv(*this, tri, bary)));
 }
 
+namespace {
+template <class T>
+uint64_t arrayBytes(const std::vector<T>& v) {
+    return uint64_t(v.capacity()) * sizeof(T);
+}
+uint64_t imageBytes(const Image& image) {
+    return arrayBytes(image.texels);
+}
+} // namespace
+
+uint64_t sceneBytes(const Scene& scene) {
+    uint64_t bytes = arrayBytes(scene.positions) + arrayBytes(scene.uvs) +
+                     arrayBytes(scene.normals) + arrayBytes(scene.triangles) +
+                     arrayBytes(scene.triangleMaterial) + arrayBytes(scene.triangleNode) +
+                     arrayBytes(scene.materials) + arrayBytes(scene.lights) +
+                     arrayBytes(scene.gltfLights) + arrayBytes(scene.nodes) +
+                     imageBytes(scene.environment.image);
+    for (const Image& image : scene.images) {
+        bytes += imageBytes(image);
+    }
+    return bytes;
+}
+
 void applyUnitScale(Scene& scene, float scale) {
     scene.unitScale *= scale;
     if (scale == 1.0f) {

@@ -196,6 +196,23 @@ expect 1 "KHR_draco_mesh_compression" -- "$pk" bake draco.gltf -o out5.pvol
 printf 'not json' >broken.gltf
 expect 1 "broken.gltf" -- "$pk" bake broken.gltf -o out6.pvol
 
+# A glTF reads files only under its own folder unless --asset-root allows another; the load
+# counts against --max-memory.
+mkdir -p assets/scene assets/shared
+"$pk" scene cornell -o assets/shared/box.gltf >/dev/null
+sed 's|"uri": "box.bin"|"uri": "../shared/box.bin"|' assets/shared/box.gltf >assets/scene/box.gltf
+expect 1 "box.gltf: buffers\[0\].uri '../shared/box.bin' resolves outside the scene's folder" -- \
+    "$pk" info assets/scene/box.gltf
+expect 0 "glTF scene, 32 triangles" -- "$pk" info assets/scene/box.gltf --asset-root assets/shared
+expect 2 "asset-root" -- "$pk" info assets/scene/box.gltf --asset-root no-such-folder
+expect 1 "resolves outside the scene's folder" -- "$pk" bake assets/scene/box.gltf -o out7.pvol
+check "no output after a refused URI" test ! -e out7.pvol
+expect 0 "wrote out8.pvol" -- "$pk" bake assets/scene/box.gltf -o out8.pvol \
+    --asset-root assets/shared --resolution 2,2,2 --samples 4
+"$pk" scene engine-mm -o engine.gltf >/dev/null
+expect 1 "engine.gltf: meshes\[[0-9]+\] .* needs [0-9]+ bytes; with [0-9]+ bytes already loaded that exceeds the memory limit of 1048576 bytes" -- \
+    "$pk" bake engine.gltf -o out9.pvol --resolution 2,2,2 --max-memory 1
+
 head -c 100 small.pvol >truncated.pvol
 expect 1 "truncated.pvol" -- "$pk" validate truncated.pvol
 expect 1 "truncated.pvol" -- "$pk" info truncated.pvol

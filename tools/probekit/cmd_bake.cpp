@@ -39,6 +39,7 @@ struct BakeOptionsCli {
     bool allowUnlit = false;
     uint32_t threads = 0;
     std::optional<int> sceneIndex;
+    std::vector<std::string> assetRoots; // --asset-root
     std::string report;
     bool quiet = false;
     bool verify = false;
@@ -171,6 +172,8 @@ Result<baker::Scene> loadScene(const BakeOptionsCli& o, const baker::BakeConfig&
     baker::LoadOptions load_options;
     load_options.sceneIndex = o.sceneIndex;
     load_options.scale = config.scale;
+    load_options.maxMemoryBytes = config.maxMemoryBytes;
+    load_options.assetRoots.assign(o.assetRoots.begin(), o.assetRoots.end());
     Result<baker::Scene> scene = baker::loadGltf(o.scene, load_options);
     if (!scene) {
         return scene;
@@ -587,6 +590,7 @@ void addBakeCommand(CLI::App& app, Command& selected) {
     cmd->get_option("--density")->excludes(res);
     cmd->add_option("--env", o->env, "environment: constant radiance R,G,B or a lat-long image");
     cmd->add_option("--scene", o->sceneIndex, "glTF scene index (default: the file's default)");
+    addAssetRootOption(cmd, o->assetRoots);
     cmd->add_option("--report", o->report, "write a JSON report of the bake");
     cmd->add_flag("-q,--quiet", o->quiet, "print nothing but errors");
     cmd->add_flag("--allow-unlit", o->allowUnlit,

@@ -161,8 +161,10 @@ void printSceneText(const nlohmann::json& j) {
     }
 }
 
-int infoScene(const std::string& path, bool json) {
-    Result<baker::Scene> scene = baker::loadGltf(path);
+int infoScene(const std::string& path, bool json, const std::vector<std::string>& asset_roots) {
+    baker::LoadOptions load_options;
+    load_options.assetRoots.assign(asset_roots.begin(), asset_roots.end());
+    Result<baker::Scene> scene = baker::loadGltf(path, load_options);
     if (!scene) {
         printError("info", scene.error().message);
         return kExitFailure;
@@ -182,6 +184,7 @@ void addInfoCommand(CLI::App& app, Command& selected) {
     struct Options {
         std::string file;
         bool json = false;
+        std::vector<std::string> assetRoots;
     };
     auto options = std::make_shared<Options>();
     CLI::App* cmd = app.add_subcommand(
@@ -189,10 +192,11 @@ void addInfoCommand(CLI::App& app, Command& selected) {
                 "glTF scene (.gltf, .glb)");
     cmd->add_option("FILE", options->file, "the .pvol file or glTF scene")->required();
     cmd->add_flag("--json", options->json, "print one JSON object instead of text");
+    addAssetRootOption(cmd, options->assetRoots);
     cmd->callback([options, &selected] {
         selected = [options] {
             if (isSceneFile(options->file)) {
-                return infoScene(options->file, options->json);
+                return infoScene(options->file, options->json, options->assetRoots);
             }
             Result<PvolFile> file = readPvol(options->file);
             if (!file) {

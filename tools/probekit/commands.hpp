@@ -3,6 +3,8 @@
 #pragma once
 
 #include <functional>
+#include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -14,6 +16,16 @@ constexpr int kExitFailure = 1; // the operation failed (bad input, invalid file
 constexpr int kExitUsage = 2;   // bad command line (CLI11 parse error)
 
 using Command = std::function<int()>;
+
+// --asset-root DIR, repeatable (probekit bake and info): a folder, besides the scene file's own,
+// whose regular files the glTF's buffer and image URIs may name (baker::LoadOptions::assetRoots).
+inline void addAssetRootOption(CLI::App* cmd, std::vector<std::string>& roots) {
+    cmd->add_option("--asset-root", roots,
+                    "also let buffer and image URIs name files under DIR (repeatable; by default "
+                    "only files under the scene's own folder are read)")
+        ->check(CLI::ExistingDirectory)
+        ->type_name("DIR");
+}
 
 void addInfoCommand(CLI::App& app, Command& selected);
 void addValidateCommand(CLI::App& app, Command& selected);

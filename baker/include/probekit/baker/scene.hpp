@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -98,12 +99,27 @@ struct Scene {
     glm::vec3 emissionAt(uint32_t tri, glm::vec2 bary) const;
 };
 
+// The bytes a scene's arrays have allocated (vertices, triangles and their per-triangle ids,
+// image texels, nodes, materials, lights and the environment; the capacity, which loadGltf
+// reserves once per primitive): what a bake's memory model charges for the loaded scene. Strings
+// and the fixed-size members are left out.
+uint64_t sceneBytes(const Scene& scene);
+
 struct LoadOptions {
     std::optional<int> sceneIndex; // glTF scene to load; default: the file's default scene, or 0
     // Metres per file unit: glTF says metres, but exports in centimetres (0.01) and millimetres
     // (0.001) are common. Positions, node transforms, light positions and ranges are scaled;
     // radiance, albedo and light intensities are not (they do not depend on length units).
     float scale = 1.0f;
+    // The most memory the load may take, in bytes: the file, the parsed JSON, buffers, decoded
+    // images (also at most 8192 x 8192 pixels each) and every accessor the loader expands,
+    // predicted from the counts in the file before anything is allocated. The default is the
+    // bake's max_memory_mb default; probekit bake passes its max_memory_mb.
+    uint64_t maxMemoryBytes = 4ull << 30;
+    // Buffer and image URIs are relative paths to regular files under the scene file's folder;
+    // these folders (which must exist) are allowed too: a URI's canonical path (`..` and symbolic
+    // links resolved) may lie under any of them. Absolute URIs are refused whatever this holds.
+    std::vector<std::filesystem::path> assetRoots;
 };
 
 // A scene whose longest side (after the scale) is beyond these is probably not in metres:
@@ -119,11 +135,21 @@ void applyUnitScale(Scene& scene, float scale);
 // geometry), naming the --scale values that would bring it within.
 std::string implausibleSizeWarning(const Scene& scene, const std::string& file);
 
-// Loads a .gltf or .glb (embedded or external buffers and images). Triangle primitives of
-// every index type and non-indexed ones are loaded; points and lines are skipped with a
-// warning; triangles with NaN/inf vertices are skipped with a warning. Fails with a message
-// naming the file and field on a missing or malformed file, an unsupported required
-// extension, an out-of-range accessor or index, or a bad scene index.
+// Loads a .gltf or .glb (embedded or external buffers and images), glTF 2.x only. Triangle
+// primitives of every index type and non-indexed ones are loaded; points and lines are skipped
+// with a warning; triangles with NaN/inf vertices are skipped with a warning. Fails with a
+// message naming the file and field on a missing, non-regular or malformed file, a damaged GLB
+// container (naming the byte offset), JSON nested deeper than 512 levels, a field of the wrong
+// JSON kind, an unsupported glTF version or required extension, an out-of-range accessor or
+// index, a node cycle, a value that overflows a float, a URI outside the allowed folders, more
+// memory than options.maxMemoryBytes, or a bad scene index.
 Result<Scene> loadGltf(const std::filesystem::path& path, const LoadOptions& options = {});
+
+// The same from bytes already in memory: `name` labels messages, its extension (.glb) and the
+// GLB magic choose the container, and its folder is the scene folder that relative URIs
+// resolve against. Never crashes, blocks or allocates beyond options.maxMemoryBytes, whatever
+// the bytes (fuzzed).
+Result<Scene> loadGltfBytes(std::span<const uint8_t> bytes, const std::filesystem::path& name,
+                            const LoadOptions& options = {});
 
 } // namespace probekit::baker
