@@ -6,6 +6,8 @@ set -euo pipefail
 # openimageio-tools: Debian's OpenImageIO CMake config declares its command-line tools
 # (iconvert, oiiotool, ...) as imported targets and fails at configure when their binaries are
 # absent, and libopenimageio-dev does not depend on that package.
+# clang-14 and libclang-rt-14-dev: the libFuzzer targets (tools/fuzz.sh) need clang and its
+# fuzzer and sanitizer runtimes; the build and the tests use g++.
 
 packages=(
     build-essential cmake ninja-build pkg-config git clang-format
@@ -13,6 +15,7 @@ packages=(
     nlohmann-json3-dev libcli11-dev
     libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers glslc
     libgtest-dev libgmock-dev googletest libbenchmark-dev
+    clang-14 libclang-rt-14-dev
     python3 python3-matplotlib python3-numpy hyperfine
 )
 

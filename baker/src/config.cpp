@@ -1073,7 +1073,8 @@ Result<BakeConfig> parseBakeConfig(std::string_view json_text, std::string_view 
     Json j;
     try {
         j = Json::parse(json_text);
-    } catch (const Json::parse_error& e) {
+    } catch (const Json::exception& e) {
+        // parse_error for syntax, out_of_range for a number beyond the double range (1e309).
         return makeError(ErrorCode::InvalidArgument,
                          std::string(source) + ": not valid JSON: " + e.what());
     }

@@ -79,6 +79,10 @@ TEST(BakeConfig, ErrorsNameFileAndField) {
         {R"({"volumes": [{"format": "double"}]})", "volumes[0].format"},
         {R"({"environment": {"type": "latlong"}})", "environment.file"},
         {R"({"method": )", "bake.json: not valid JSON"},
+        // Found by fuzz_config: a number beyond the double range is nlohmann's out_of_range,
+        // not a parse_error, and once escaped parseBakeConfig and terminated the process.
+        {R"({"scale": 1.901e308})", "bake.json: not valid JSON: [json.exception.out_of_range.406] "
+                                    "number overflow parsing '1.901e308'"},
     };
     test::expectConfigErrors(cases);
 }
