@@ -8,6 +8,9 @@
 #include <embree3/rtcore.h>
 #include <glm/geometric.hpp>
 
+#include "coordinate_range.hpp"
+#include "probekit/formats/check.hpp"
+
 #if defined(__SSE__)
 #include <xmmintrin.h>
 #endif
@@ -27,6 +30,16 @@ void onDeviceError(void* user, RTCError code, const char* message) {
     log->messages += "Embree error " + std::to_string(int(code)) + ": " + (message ? message : "");
 }
 
+// Embree calls this before each allocation (bytes > 0) and after each release (bytes < 0).
+bool onMemory(void* user, ssize_t bytes, bool /*post*/) {
+    auto* log = static_cast<RayTracer::MemoryLog*>(user);
+    const int64_t now = log->current.fetch_add(bytes) + bytes;
+    int64_t peak = log->peak.load();
+    while (now > peak && !log->peak.compare_exchange_weak(peak, now)) {
+    }
+    return true; // never refuse: bake() checked the memory model before building
+}
+
 Error embreeFailure(RayTracer::ErrorLog& log) {
     const std::lock_guard lock(log.mutex);
     return makeError(ErrorCode::InvalidArgument, "ray tracer: " + log.messages);
@@ -38,6 +51,10 @@ bool hasErrors(RayTracer::ErrorLog& log) {
 }
 
 RTCRay makeRay(glm::vec3 origin, glm::vec3 dir, float t_max) {
+    // Embree checks this only in its debug builds; a release build traces such a ray into
+    // garbage. Input is held within kMaxCoordinate before anything is traced, so a failure
+    // here is an integrator's NaN.
+    PK_CHECK(RayTracer::validRay(origin, dir, t_max));
     RTCRay ray;
     ray.org_x = origin.x;
     ray.org_y = origin.y;
@@ -57,6 +74,10 @@ RTCRay makeRay(glm::vec3 origin, glm::vec3 dir, float t_max) {
 } // namespace
 
 Result<std::unique_ptr<RayTracer>> RayTracer::create(const Scene& scene) {
+    // Every tracer, not only the bake's, refuses coordinates its rays cannot leave surfaces at.
+    if (Result<void> inside = checkSceneCoordinates(scene); !inside) {
+        return inside.error();
+    }
     const size_t vertex_count = scene.positions.size();
     for (size_t i = 0; i < scene.triangles.size(); ++i) {
         const glm::uvec3 t = scene.triangles[i];
@@ -79,6 +100,7 @@ Result<std::unique_ptr<RayTracer>> RayTracer::create(const Scene& scene) {
     }
     // Route every later error of this device to the log that create() reports from.
     rtcSetDeviceErrorFunction(tracer->m_device, onDeviceError, tracer->m_errors.get());
+    rtcSetDeviceMemoryMonitorFunction(tracer->m_device, onMemory, tracer->m_memory.get());
 
     // Two-sided surfaces and validity (back-face counts) both need back-face hits; a build with
     // EMBREE_BACKFACE_CULLING would silently drop half of them.

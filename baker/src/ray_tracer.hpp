@@ -9,6 +9,8 @@
 // Embree stays behind this file's .cpp; this header is private to baker/ (and its tests).
 #pragma once
 
+#include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -20,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
@@ -81,6 +84,12 @@ public:
 
     uint32_t triangleCount() const { return uint32_t(m_normals.size()); }
 
+    // Bytes Embree allocated for this tracer's device and scene (its memory monitor callback):
+    // held now (the BVH), and at most at once (the build's peak). The memory model's BVH
+    // constants (memory_model.hpp) are measured with these.
+    uint64_t embreeBytes() const { return uint64_t(std::max<int64_t>(0, m_memory->current)); }
+    uint64_t embreePeakBytes() const { return uint64_t(std::max<int64_t>(0, m_memory->peak)); }
+
     // Moves a surface point p off its triangle, to the side of the geometric normal that `dir`
     // leaves on, far enough that a ray from the result towards `dir` cannot hit the same surface
     // through rounding, yet by only a few hundred ulps of p: Wächter and Binder, "A Fast and
@@ -89,10 +98,27 @@ public:
     // Inline: it runs several times per path vertex.
     static glm::vec3 offsetOrigin(glm::vec3 p, glm::vec3 geometric_normal, glm::vec3 dir);
 
+    // What Embree accepts as a ray (its RayK::valid): every origin and direction component at
+    // most FLT_LARGE (1.844e18) in magnitude and not NaN, t_max in [0, inf]. The queries check
+    // it in every build (PK_CHECK): an invalid ray aborts in a debug Embree and gives garbage
+    // in a release one.
+    static bool validRay(glm::vec3 origin, glm::vec3 dir, float t_max) {
+        constexpr float kLarge = 1.844e18f;
+        const glm::vec3 o = glm::abs(origin);
+        const glm::vec3 d = glm::abs(dir);
+        return o.x <= kLarge && o.y <= kLarge && o.z <= kLarge && d.x <= kLarge && d.y <= kLarge &&
+               d.z <= kLarge && t_max >= 0.0f;
+    }
+
     // Collects messages from Embree's device error callback (thread-safe).
     struct ErrorLog {
         std::mutex mutex;
         std::string messages;
+    };
+    // Embree's allocations as its memory monitor reports them (thread-safe).
+    struct MemoryLog {
+        std::atomic<int64_t> current{0};
+        std::atomic<int64_t> peak{0};
     };
 
 private:
@@ -104,6 +130,7 @@ private:
     std::vector<glm::vec3> m_vertices; // world positions, for surfacePoint
     std::vector<glm::uvec3> m_indices; // triangle vertex indices
     std::unique_ptr<ErrorLog> m_errors = std::make_unique<ErrorLog>();
+    std::unique_ptr<MemoryLog> m_memory = std::make_unique<MemoryLog>();
 };
 
 inline glm::vec3 RayTracer::surfacePoint(uint32_t triangle, glm::vec2 bary) const {

@@ -13,6 +13,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -207,9 +208,11 @@ struct BakeConfig {
     // Store per-probe occluder distances (formats/.../visibility.hpp) so that interpolation
     // between probes does not carry light through walls; 54 rays per probe.
     bool visibility = true;
-    // Dense volumes: the bake's working memory may not exceed this (error). Bricked volumes:
-    // budget for their GPU bytes (texels + indirection); when it binds, the refinements whose
-    // removal costs the least error are dropped (BakeStats::budgetDropped / budgetError).
+    // The bake's predicted peak memory (the memory model, README) may not exceed this, nor
+    // 256 MiB when less (error); dense volumes' grids may not exceed it either. Bricked volumes:
+    // their refinement uses what is left of it, and it is the budget for their GPU bytes
+    // (texels + indirection); when that binds, the refinements whose removal costs the least
+    // error are dropped (BakeStats::budgetDropped / budgetError).
     uint64_t maxMemoryBytes = 4ull << 30;
     std::vector<VolumeConfig> volumes; // empty = one auto-world volume with defaults
     // "target_error": let chooseSettings pick density, refinement, SH order and sample count
@@ -283,6 +286,13 @@ struct BakeStats {
     double mraysPerSecond = 0.0;
     uint64_t invalidProbes = 0;
     uint64_t peakMemoryBytes = 0; // the process's peak resident set (getrusage)
+    // The memory model's prediction of that peak, made before the bake allocated anything big
+    // (README, max_memory_mb): the phase that peaks and its terms (what, bytes). For bricked
+    // volumes it counts refinement at its bound, predictedRefinementBytes of it.
+    uint64_t predictedPeakBytes = 0;
+    uint64_t predictedRefinementBytes = 0;
+    std::string predictedPeakPhase;
+    std::vector<std::pair<std::string, uint64_t>> predictedTerms;
     uint32_t threads = 0;
     uint64_t vpls = 0;          // methods vpl and lpv: VPLs in the set
     uint64_t vplLightPaths = 0; // method vpl: light paths traced to place them
