@@ -22,7 +22,6 @@
 #include <string>
 #include <vector>
 
-#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
@@ -97,18 +96,6 @@ public:
     // offset of each coordinate, a fixed float offset near the origin where ulps vanish).
     // Inline: it runs several times per path vertex.
     static glm::vec3 offsetOrigin(glm::vec3 p, glm::vec3 geometric_normal, glm::vec3 dir);
-
-    // What Embree accepts as a ray (its RayK::valid): every origin and direction component at
-    // most FLT_LARGE (1.844e18) in magnitude and not NaN, t_max in [0, inf]. The queries check
-    // it in every build (PK_CHECK): an invalid ray aborts in a debug Embree and gives garbage
-    // in a release one.
-    static bool validRay(glm::vec3 origin, glm::vec3 dir, float t_max) {
-        constexpr float kLarge = 1.844e18f;
-        const glm::vec3 o = glm::abs(origin);
-        const glm::vec3 d = glm::abs(dir);
-        return o.x <= kLarge && o.y <= kLarge && o.z <= kLarge && d.x <= kLarge && d.y <= kLarge &&
-               d.z <= kLarge && t_max >= 0.0f;
-    }
 
     // Collects messages from Embree's device error callback (thread-safe).
     struct ErrorLog {
