@@ -1,11 +1,15 @@
 #include "memory_model.hpp"
 
-#include <malloc.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
+
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include "bricked.hpp"
 #include "lpv.hpp"
@@ -99,8 +103,9 @@ double areaInside(const Scene& scene, const grid::Aabb& box) {
     return area;
 }
 
-// Measured transfers a surface blocks per square cell of surface (buildLpvTransfer's
-// corrections), at most 6 per cell.
+// Transfers a surface blocks per cell-sized square of surface (buildLpvTransfer's corrections;
+// never more than 6 per cell): measured 5.8 to 10.5 over the Cornell box, the courtyard and the
+// engine at grids 16 to 64.
 constexpr double kLpvCorrectionsPerCellArea = 12.0;
 
 // One volume's LPV cascades (LpvCascades' constructor): the largest bytes held while they are

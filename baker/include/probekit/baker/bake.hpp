@@ -242,12 +242,15 @@ struct VolumePlan {
 
 // Places every volume (bounds, frame, resolution) without baking, as resolveVolumes, and says
 // what it capped: an automatic resolution above max_resolution (with the resolution asked and
-// the spacing used) and an automatic padding that grew the box.
+// the spacing used) and an automatic padding that grew the box; and, for a scene far from the
+// origin for its probe spacing, what float32 precision costs there.
 Result<VolumePlan> planVolumes(const Scene& scene, const BakeConfig& config);
 
 // Places every volume (bounds, frame, resolution) without baking. Fails naming the volume and
 // field for zero-size or inverted bounds, unknown nodes, an empty scene with automatic bounds,
-// bad resolutions, or a total size beyond config.maxMemoryBytes.
+// bad resolutions, or a total size beyond config.maxMemoryBytes; naming the file and the node,
+// light or volume for coordinates beyond the range a bake supports (|x|, |y|, |z| <= 1e7 m,
+// README "Scenes").
 Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeConfig& config);
 
 // Smallest distance between probes a volume may have per axis, metres: the grid spacing of a
@@ -319,7 +322,9 @@ struct BakeResult {
 
 // Checks the config first (validateBakeConfig, settings.hpp): a config built in code gets the
 // errors a config file would. Then fails on a scene that emits no light (checkSceneLit) unless
-// options.allowUnlit, which turns that error into a warning.
+// options.allowUnlit, which turns that error into a warning; on the errors of planVolumes; and,
+// before building the BVH, on a predicted peak memory above max_memory_mb (README, Memory),
+// naming the largest terms.
 Result<BakeResult> bake(const Scene& scene, const BakeConfig& config,
                         const BakeOptions& options = {});
 
