@@ -15,7 +15,9 @@
 #include <glm/gtc/quaternion.hpp>
 
 #include "bricked.hpp"
+#include "coordinate_range.hpp"
 #include "lpv_method.hpp"
+#include "memory_model.hpp"
 #include "parallel.hpp"
 #include "path_integrator.hpp"
 #include "probekit/baker/bake.hpp"
@@ -286,6 +288,9 @@ glm::uvec3 automaticResolution(const VolumeConfig& v, const grid::Aabb& box, flo
 } // namespace
 
 Result<VolumePlan> planVolumes(const Scene& scene, const BakeConfig& config) {
+    if (Result<void> inside = checkSceneCoordinates(scene); !inside) {
+        return inside.error();
+    }
     const std::vector<VolumeConfig> configs = volumeConfigs(config);
     VolumePlan plan;
     std::unique_ptr<RayTracer> tracer; // built only if a volume's padding is automatic
@@ -300,6 +305,13 @@ Result<VolumePlan> planVolumes(const Scene& scene, const BakeConfig& config) {
         float padding = v.bounds.padding.value_or(0.0f);
         if (!v.bounds.padding && v.bounds.mode != BoundsMode::Custom && scene.hasGeometry()) {
             if (!tracer) {
+                // The tracer is the first big allocation: the bake's memory model (without
+                // volumes) must allow it.
+                if (Result<void> fits = checkBakeMemory(
+                        predictBakeMemory({scene, config, {}, 0, 1, processBytes(scene)}), config);
+                    !fits) {
+                    return fits.error();
+                }
                 Result<std::unique_ptr<RayTracer>> made = RayTracer::create(scene);
                 if (!made) {
                     return made.error();
@@ -336,6 +348,9 @@ Result<VolumePlan> planVolumes(const Scene& scene, const BakeConfig& config) {
                 }
             }
         }
+        if (Result<void> inside = checkVolumeCoordinates(box, label); !inside) {
+            return inside.error();
+        }
         const bool bricked = v.layout == VolumeLayout::Bricked;
         const glm::uvec3 res =
             v.resolution ? *v.resolution : automaticResolution(v, box, density, label, plan.notes);
@@ -343,6 +358,10 @@ Result<VolumePlan> planVolumes(const Scene& scene, const BakeConfig& config) {
             box, res, bricked ? grid::PositionMode::Center : v.position, placed.value().frame);
         if (!layout) {
             return makeError(layout.error().code, label + ": " + layout.error().message);
+        }
+        if (Result<void> inside = checkVolumeCoordinates(layout.value().worldBounds(), label);
+            !inside) {
+            return inside.error();
         }
         VolumeDesc desc;
         desc.name = v.name;
@@ -357,6 +376,18 @@ Result<VolumePlan> planVolumes(const Scene& scene, const BakeConfig& config) {
         }
         plan.volumes.push_back(std::move(desc));
         plan.padding.push_back(padding);
+    }
+    if (!plan.volumes.empty()) {
+        grid::Aabb all = plan.volumes[0].grid.worldBounds();
+        float finest = INFINITY;
+        for (const VolumeDesc& d : plan.volumes) {
+            all = unionOf(all, d.grid.worldBounds());
+            const glm::vec3 s = probeSpacing(d);
+            finest = std::min({finest, s.x, s.y, s.z});
+        }
+        if (std::string note = precisionNote(scene, all, finest); !note.empty()) {
+            plan.notes.push_back((scene.source.empty() ? "scene" : scene.source) + ": " + note);
+        }
     }
     const uint64_t bytes = estimateBakeMemory(plan.volumes);
     if (bytes > config.maxMemoryBytes) {
@@ -438,6 +469,7 @@ struct BakeRun {
     const RayTracer& tracer;
     std::chrono::steady_clock::time_point start;
     uint32_t threads;
+    const MemoryPrediction& memory;
     // Grows as batches are queued: a bricked volume's probes are known only as it refines.
     std::atomic<uint64_t> totalProbes{0};
     std::atomic<uint64_t> probesDone{0};
@@ -588,12 +620,13 @@ void bakeBatch(BakeRun& run, const VolumeIntegrator& integrator,
     }
 }
 
-BrickedSettings brickedSettings(const BakeRun& run, const VolumeConfig& vc) {
+BrickedSettings brickedSettings(const BakeRun& run, const VolumeConfig& vc, uint32_t volume_index) {
     BrickedSettings bs;
     bs.maxLevel = vc.maxLevel;
     bs.refineError = vc.refineError;
     bs.budgetBytes = run.config.maxMemoryBytes;
-    bs.workingBytes = std::max(run.config.maxMemoryBytes, kMinWorkingBytes);
+    // max_memory_mb less what the rest of the bake holds meanwhile (memory_model.hpp).
+    bs.workingBytes = run.memory.brickedWorkingBytes[volume_index];
     bs.dilate = run.config.dilate;
     bs.tracer = &run.tracer;
     bs.nudge = run.config.nudge;
@@ -620,9 +653,10 @@ void addBrickedOutcome(const BrickedOutcome& b, BakeResult& result) {
 }
 
 Result<Volume> bakeBrickedVolume(BakeRun& run, const VolumeDesc& desc, const VolumeConfig& vc,
-                                 const ProbeBatchFn& bake_batch, BakeResult& result) {
-    Result<BrickedOutcome> bricked =
-        bakeBricked(run.scene, desc, desc.shOrder, brickedSettings(run, vc), bake_batch);
+                                 uint32_t volume_index, const ProbeBatchFn& bake_batch,
+                                 BakeResult& result) {
+    Result<BrickedOutcome> bricked = bakeBricked(
+        run.scene, desc, desc.shOrder, brickedSettings(run, vc, volume_index), bake_batch);
     if (!bricked) {
         return bricked.error();
     }
@@ -674,9 +708,20 @@ Result<Volume> bakeVolume(BakeRun& run, const MethodState& method, const VolumeD
         bakeBatch(run, integrator, positions, ids, out_sh, out_valid);
     };
     if (desc.layout == VolumeLayout::Bricked) {
-        return bakeBrickedVolume(run, desc, vc, bake_batch, result);
+        return bakeBrickedVolume(run, desc, vc, volume_index, bake_batch, result);
     }
     return bakeDenseVolume(run, desc, bake_batch, result);
+}
+
+// The memory model's prediction next to the measured peak (BakeStats).
+void recordPrediction(const MemoryPrediction& memory, BakeStats& stats) {
+    stats.predictedPeakBytes = memory.peakBytes;
+    stats.predictedRefinementBytes = memory.refinementBoundBytes;
+    const MemoryPhase& peak = memory.phases[memory.peakPhase];
+    stats.predictedPeakPhase = peak.name;
+    for (const MemoryTerm& t : peak.terms) {
+        stats.predictedTerms.emplace_back(t.what, t.bytes);
+    }
 }
 
 void finishStats(const BakeRun& run, const MethodState& method, BakeStats& stats) {
@@ -742,14 +787,24 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
         return plan.error();
     }
     const std::vector<VolumeDesc>& descs = plan.value().volumes;
+    // Everything big is allocated from here on: the memory model decides first.
+    const uint32_t threads = resolveThreads(options.threads);
+    const MemoryPrediction memory = predictBakeMemory(
+        {scene, config, descs,
+         config.method == Method::Vpl ? *resolveVplConfig(scene, descs, config).count : 0, threads,
+         processBytes(scene)});
+    if (Result<void> fits = checkBakeMemory(memory, config); !fits) {
+        return fits.error();
+    }
     Result<std::unique_ptr<RayTracer>> tracer = RayTracer::create(scene);
     if (!tracer) {
         return tracer.error();
     }
-    BakeRun run{scene, config, options, *tracer.value(), start, resolveThreads(options.threads)};
+    BakeRun run{scene, config, options, *tracer.value(), start, threads, memory};
     BakeResult result;
     result.warnings = plan.value().notes;
     result.stats.threads = run.threads;
+    recordPrediction(memory, result.stats);
     if (!lit) {
         result.warnings.push_back(lit.error().message);
     }

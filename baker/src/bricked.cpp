@@ -973,9 +973,9 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
     if (b.out.memoryUntested > 0) {
         b.out.warnings.push_back(
             "volume '" + desc.name + "': " + std::to_string(b.out.memoryUntested) +
-            " candidate bricks were not refined: their probes would not fit in max_memory_mb = " +
-            std::to_string(settings.workingBytes >> 20) + " (about " +
-            std::to_string(kBakedProbeBytes) +
+            " candidate bricks were not refined: their probes would not fit in the " +
+            std::to_string(settings.workingBytes >> 20) +
+            " MiB max_memory_mb leaves the refinement (about " + std::to_string(kBakedProbeBytes) +
             " bytes per baked probe); the bricks that disagreed most were refined first");
     }
     const Result<uint32_t> used_level = applyBudget(b);

@@ -35,9 +35,10 @@ struct BrickedSettings {
     uint32_t maxLevel = 2;
     float refineError = 0.05f; // fraction of the volume's RMS irradiance
     uint64_t budgetBytes = ~uint64_t(0);
-    // The bake's working memory for this volume (BakeConfig::maxMemoryBytes): refinement tests
-    // no more candidate bricks than the lattice can hold at kBakedProbeBytes per probe, the
-    // candidates with the largest predicted disagreement first.
+    // The bake's working memory for this volume (what BakeConfig::maxMemoryBytes leaves beside
+    // the rest of the bake, memory_model.hpp): refinement tests no more candidate bricks than
+    // the lattice can hold at kBakedProbeBytes per probe, the candidates with the largest
+    // predicted disagreement first.
     uint64_t workingBytes = ~uint64_t(0);
     bool dilate = true;
     // Traces the direct-light pre-pass (shadow rays to punctual lights) and the search for

@@ -440,6 +440,13 @@ std::vector<LpvCascadeLayout> layoutLpvCascades(const grid::Aabb& volume, const 
     return out;
 }
 
+TriangleCorners triangleCorners(const Scene& scene, glm::uvec3 t) {
+    const glm::vec3 a = scene.positions[t.x];
+    const glm::vec3 b = scene.positions[t.y];
+    const glm::vec3 c = scene.positions[t.z];
+    return {a, b, c, glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c))};
+}
+
 LpvTransfer buildLpvTransfer(const Scene& scene, const LpvCascadeLayout& layout,
                              const LpvSettings& settings) {
     LpvTransfer out;
@@ -464,11 +471,7 @@ LpvTransfer buildLpvTransfer(const Scene& scene, const LpvCascadeLayout& layout,
     constexpr std::array<float, 3> kLambda = {4.0f / 3.0f * sh::kPi, 0.0f, 8.0f / 15.0f * sh::kPi};
     const float per_area = 1.0f / (s * s);
     for (const glm::uvec3& t : scene.triangles) {
-        const glm::vec3 a = scene.positions[t.x];
-        const glm::vec3 b = scene.positions[t.y];
-        const glm::vec3 c = scene.positions[t.z];
-        const glm::vec3 lo = glm::min(a, glm::min(b, c));
-        const glm::vec3 hi = glm::max(a, glm::max(b, c));
+        const auto [a, b, c, lo, hi] = triangleCorners(scene, t);
         const glm::vec3 cross = glm::cross(b - a, c - a);
         const float length = glm::length(cross);
         if (!(length > 0.0f) || glm::any(glm::lessThan(hi, box.min)) ||

@@ -191,6 +191,13 @@ struct LpvTransfer {
     std::vector<Correction> border;      // transfers out of the grid (destination unused)
 };
 
+// Triangle t's corners and bounding box.
+struct TriangleCorners {
+    glm::vec3 a, b, c;
+    glm::vec3 lo, hi;
+};
+TriangleCorners triangleCorners(const Scene& scene, glm::uvec3 t);
+
 // Transfers through the geometry volume of `layout` built from the scene's triangles
 // (deterministic area samples, sub-triangles of at most half a cell), or, without occlusion, the
 // free transfers alone. Both scale by settings.propagationWeight.

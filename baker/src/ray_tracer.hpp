@@ -9,6 +9,8 @@
 // Embree stays behind this file's .cpp; this header is private to baker/ (and its tests).
 #pragma once
 
+#include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -81,6 +83,12 @@ public:
 
     uint32_t triangleCount() const { return uint32_t(m_normals.size()); }
 
+    // Bytes Embree allocated for this tracer's device and scene (its memory monitor callback):
+    // held now (the BVH), and at most at once (the build's peak). The memory model's BVH
+    // constants (memory_model.hpp) are measured with these.
+    uint64_t embreeBytes() const { return uint64_t(std::max<int64_t>(0, m_memory->current)); }
+    uint64_t embreePeakBytes() const { return uint64_t(std::max<int64_t>(0, m_memory->peak)); }
+
     // Moves a surface point p off its triangle, to the side of the geometric normal that `dir`
     // leaves on, far enough that a ray from the result towards `dir` cannot hit the same surface
     // through rounding, yet by only a few hundred ulps of p: Wächter and Binder, "A Fast and
@@ -94,6 +102,11 @@ public:
         std::mutex mutex;
         std::string messages;
     };
+    // Embree's allocations as its memory monitor reports them (thread-safe).
+    struct MemoryLog {
+        std::atomic<int64_t> current{0};
+        std::atomic<int64_t> peak{0};
+    };
 
 private:
     RayTracer() = default;
@@ -104,6 +117,7 @@ private:
     std::vector<glm::vec3> m_vertices; // world positions, for surfacePoint
     std::vector<glm::uvec3> m_indices; // triangle vertex indices
     std::unique_ptr<ErrorLog> m_errors = std::make_unique<ErrorLog>();
+    std::unique_ptr<MemoryLog> m_memory = std::make_unique<MemoryLog>();
 };
 
 inline glm::vec3 RayTracer::surfacePoint(uint32_t triangle, glm::vec2 bary) const {

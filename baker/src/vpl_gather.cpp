@@ -104,6 +104,14 @@ VplGatherer::VplGatherer(std::vector<Vpl> vpls, const RayTracer& tracer, VplGath
     build(order, 0, order.size(), normal_scale, seed);
 }
 
+uint64_t VplGatherer::heldBytes(uint64_t count) {
+    return count * sizeof(Vpl) + (count > 0 ? 2 * count - 1 : 0) * sizeof(Node);
+}
+
+uint64_t VplGatherer::buildBytes(uint64_t count) {
+    return heldBytes(count) + count * (sizeof(Vpl) + sizeof(uint32_t));
+}
+
 uint32_t VplGatherer::build(std::vector<uint32_t>& order, size_t begin, size_t end,
                             float normal_scale, uint64_t seed) {
     const auto index = uint32_t(m_nodes.size());

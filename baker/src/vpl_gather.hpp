@@ -130,6 +130,12 @@ public:
 
     const std::vector<Vpl>& vpls() const { return m_vpls; }
 
+    // Bytes a gatherer of `count` VPLs holds (its copy of the VPLs and the light tree's
+    // 2 count - 1 nodes), and at most while it is built (the set it is given and the build
+    // order besides): the memory model's (memory_model.hpp).
+    static uint64_t heldBytes(uint64_t count);
+    static uint64_t buildBytes(uint64_t count);
+
 private:
     struct Node {
         glm::vec3 boxMin;

@@ -213,6 +213,50 @@ expect 0 "wrote out8.pvol" -- "$pk" bake assets/scene/box.gltf -o out8.pvol \
 expect 1 "engine.gltf: meshes\[[0-9]+\] .* needs [0-9]+ bytes; with [0-9]+ bytes already loaded that exceeds the memory limit of 1048576 bytes" -- \
     "$pk" bake engine.gltf -o out9.pvol --resolution 2,2,2 --max-memory 1
 
+# Coordinates beyond what float32 tracing can do are refused before anything is traced.
+expect 1 "cornell.gltf: node 0 \('white'\), triangle 0: vertex \(0, 0, 5.592e\+19\) m lies outside the coordinate range a bake supports" -- \
+    "$pk" bake cornell.gltf -o far.pvol --scale 1e20
+check "no output after a refused scale" test ! -e far.pvol
+
+# The memory model (README, Memory): too big a bake is refused before it allocates, naming the
+# largest term; max_memory_mb's bytes cannot overflow.
+expect 1 "predicted peak memory [0-9.]+ GiB \(tracing the VPLs\) exceeds max_memory_mb = 4096: vpl.count 16777216 VPLs and their light tree need 5.7 GiB \(lower --vpl-count, or raise --max-memory\)" -- \
+    "$pk" bake cornell.gltf -o mem1.pvol --method vpl --vpl-count 16777216
+expect 1 "65802240 cells of lpv.grid 256 x lpv.cascades 4 need 8.1 GiB" -- \
+    "$pk" bake cornell.gltf -o mem2.pvol --method lpv --lpv-grid 256 --lpv-cascades 4 \
+    --resolution 2,2,2
+expect 2 "max_memory_mb: must be in 1..1073741824 \(got 17592186044416\)" -- \
+    "$pk" bake cornell.gltf -o mem3.pvol --max-memory 17592186044416
+check "no output after a refused bake" test ! -e mem1.pvol -a ! -e mem2.pvol -a ! -e mem3.pvol
+# Prediction against the measured peak of the same process (--report): within 25% for dense,
+# VPL and LPV bakes whose modelled terms are 100-300 MiB beside ~130 MiB of libraries; for a
+# bricked volume the prediction bounds the peak.
+report_field() { grep -oE "\"$2\": [0-9]+" "$1" | head -1 | grep -oE "[0-9]+$"; }
+predicted_within() { # predicted_within REPORT LOW HIGH: LOW <= predicted / measured <= HIGH
+    local p m
+    p=$(report_field "$1" predicted_peak_bytes)
+    m=$(report_field "$1" peak_memory_bytes)
+    awk -v f="$1" -v p="$p" -v m="$m" -v lo="$2" -v hi="$3" 'BEGIN {
+        r = m > 0 ? p / m : 0
+        printf "  %s: predicted %.0f MiB, measured %.0f MiB (%.3f)\n", f, p / 2^20, m / 2^20, r
+        exit !(r >= lo && r <= hi) }'
+}
+"$pk" bake cornell.gltf -o mem4.pvol -q --resolution 128,128,64 --samples 1 --no-visibility \
+    --report mem4.json
+check "dense bake: predicted peak within 25%" predicted_within mem4.json 0.8 1.25
+"$pk" bake cornell.gltf -o mem5.pvol -q --method vpl --vpl-count 524288 --resolution 2,2,2 \
+    --report mem5.json
+check "vpl bake: predicted peak within 25%" predicted_within mem5.json 0.8 1.25
+"$pk" bake cornell.gltf -o mem6.pvol -q --method lpv --lpv-grid 64 --lpv-cascades 2 \
+    --resolution 2,2,2 --report mem6.json
+check "lpv bake: predicted peak within 25%" predicted_within mem6.json 0.8 1.25
+cat > mem7.json.in <<'JSON'
+{"path": {"samples": 16}, "volumes": [{"layout": "bricked", "levels": 2, "refine_error": 0.02,
+  "resolution": [8, 4, 8]}]}
+JSON
+"$pk" bake courtyard.gltf -o mem7.pvol -q --config mem7.json.in --report mem7.json
+check "bricked bake: the prediction bounds the peak" predicted_within mem7.json 1.0 100
+
 head -c 100 small.pvol >truncated.pvol
 expect 1 "truncated.pvol" -- "$pk" validate truncated.pvol
 expect 1 "truncated.pvol" -- "$pk" info truncated.pvol

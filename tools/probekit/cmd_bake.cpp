@@ -311,6 +311,11 @@ nlohmann::json makeReport(const BakeOptionsCli& o, const baker::BakeConfig& conf
         {"mrays_per_second", s.mraysPerSecond},
         {"invalid_probes", s.invalidProbes},
         {"peak_memory_bytes", s.peakMemoryBytes},
+        {"predicted_peak_bytes", s.predictedPeakBytes},
+        {"predicted_memory",
+         {{"phase", s.predictedPeakPhase},
+          {"terms", s.predictedTerms},
+          {"bricked_refinement_bound_bytes", s.predictedRefinementBytes}}},
         {"threads", s.threads},
         {"vpls", s.vpls},
         {"vpls_requested", requestedVpls(config, result)},
@@ -348,9 +353,10 @@ void printSummary(const BakeOptionsCli& o, const baker::BakeConfig& config,
     const baker::BakeStats& s = result.stats;
     const auto count = [](uint64_t n) { return static_cast<unsigned long long>(n); };
     std::printf("wrote %s: %.2f s, %llu probes, %.3g rays, %.2f Mrays/s, %llu invalid probes, "
-                "peak memory %.1f MiB, %u threads\n",
+                "peak memory %.1f MiB (predicted %.1f), %u threads\n",
                 o.output.c_str(), s.seconds, count(s.probes), double(s.rays), s.mraysPerSecond,
-                count(s.invalidProbes), double(s.peakMemoryBytes) / (1 << 20), s.threads);
+                count(s.invalidProbes), double(s.peakMemoryBytes) / (1 << 20),
+                double(s.predictedPeakBytes) / (1 << 20), s.threads);
     if (config.method == baker::Method::Vpl) {
         std::printf("  VPLs: %llu requested, %llu placed from %llu light paths, %.1f clusters "
                     "gathered per probe\n",

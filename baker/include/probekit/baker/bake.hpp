@@ -13,6 +13,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -207,9 +208,11 @@ struct BakeConfig {
     // Store per-probe occluder distances (formats/.../visibility.hpp) so that interpolation
     // between probes does not carry light through walls; 54 rays per probe.
     bool visibility = true;
-    // Dense volumes: the bake's working memory may not exceed this (error). Bricked volumes:
-    // budget for their GPU bytes (texels + indirection); when it binds, the refinements whose
-    // removal costs the least error are dropped (BakeStats::budgetDropped / budgetError).
+    // The bake's predicted peak memory (the memory model, README) may not exceed this, nor
+    // 256 MiB when less (error); dense volumes' grids may not exceed it either. Bricked volumes:
+    // their refinement uses what is left of it, and it is the budget for their GPU bytes
+    // (texels + indirection); when that binds, the refinements whose removal costs the least
+    // error are dropped (BakeStats::budgetDropped / budgetError).
     uint64_t maxMemoryBytes = 4ull << 30;
     std::vector<VolumeConfig> volumes; // empty = one auto-world volume with defaults
     // "target_error": let chooseSettings pick density, refinement, SH order and sample count
@@ -243,12 +246,15 @@ struct VolumePlan {
 
 // Places every volume (bounds, frame, resolution) without baking, as resolveVolumes, and says
 // what it capped: an automatic resolution above max_resolution (with the resolution asked and
-// the spacing used) and an automatic padding that grew the box.
+// the spacing used) and an automatic padding that grew the box; and, for a scene far from the
+// origin for its probe spacing, what float32 precision costs there.
 Result<VolumePlan> planVolumes(const Scene& scene, const BakeConfig& config);
 
 // Places every volume (bounds, frame, resolution) without baking. Fails naming the volume and
 // field for zero-size or inverted bounds, unknown nodes, an empty scene with automatic bounds,
-// bad resolutions, or a total size beyond config.maxMemoryBytes.
+// bad resolutions, or a total size beyond config.maxMemoryBytes; naming the file and the node,
+// light or volume for coordinates beyond the range a bake supports (|x|, |y|, |z| <= 1e7 m,
+// README "Scenes").
 Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeConfig& config);
 
 // Smallest distance between probes a volume may have per axis, metres: the grid spacing of a
@@ -287,6 +293,13 @@ struct BakeStats {
     double mraysPerSecond = 0.0;
     uint64_t invalidProbes = 0;
     uint64_t peakMemoryBytes = 0; // the process's peak resident set (getrusage)
+    // The memory model's prediction of that peak, made before the bake allocated anything big
+    // (README, max_memory_mb): the phase that peaks and its terms (what, bytes). For bricked
+    // volumes it counts refinement at its bound, predictedRefinementBytes of it.
+    uint64_t predictedPeakBytes = 0;
+    uint64_t predictedRefinementBytes = 0;
+    std::string predictedPeakPhase;
+    std::vector<std::pair<std::string, uint64_t>> predictedTerms;
     uint32_t threads = 0;
     uint64_t vpls = 0;          // methods vpl and lpv: VPLs in the set
     uint64_t vplLightPaths = 0; // method vpl: light paths traced to place them
@@ -313,7 +326,9 @@ struct BakeResult {
 
 // Checks the config first (validateBakeConfig, settings.hpp): a config built in code gets the
 // errors a config file would. Then fails on a scene that emits no light (checkSceneLit) unless
-// options.allowUnlit, which turns that error into a warning.
+// options.allowUnlit, which turns that error into a warning; on the errors of planVolumes; and,
+// before building the BVH, on a predicted peak memory above max_memory_mb (README, Memory),
+// naming the largest terms.
 Result<BakeResult> bake(const Scene& scene, const BakeConfig& config,
                         const BakeOptions& options = {});
 
