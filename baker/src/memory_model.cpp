@@ -21,15 +21,6 @@ namespace probekit::baker {
 
 namespace {
 
-template <class T>
-uint64_t bytesOf(const std::vector<T>& v) {
-    return uint64_t(v.size()) * sizeof(T);
-}
-
-uint64_t imageBytes(const Image& image) {
-    return uint64_t(image.width) * image.height * sizeof(glm::vec4);
-}
-
 std::string count(uint64_t n) {
     return std::to_string(n);
 }
@@ -172,17 +163,6 @@ uint64_t MemoryPhase::bytes() const {
         total += t.bytes;
     }
     return total;
-}
-
-uint64_t sceneBytes(const Scene& s) {
-    uint64_t bytes = bytesOf(s.positions) + bytesOf(s.uvs) + bytesOf(s.normals) +
-                     bytesOf(s.triangles) + bytesOf(s.triangleMaterial) + bytesOf(s.triangleNode) +
-                     bytesOf(s.materials) + bytesOf(s.lights) + bytesOf(s.gltfLights) +
-                     bytesOf(s.nodes) + imageBytes(s.environment.image);
-    for (const Image& image : s.images) {
-        bytes += imageBytes(image);
-    }
-    return bytes;
 }
 
 uint64_t residentBytes() {

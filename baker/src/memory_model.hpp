@@ -77,10 +77,6 @@ struct MemoryInputs {
     uint64_t processBytes = 0; // resident bytes besides the scene (processBytes())
 };
 
-// Bytes of the scene's arrays: vertices, triangles, materials, nodes, lights, images and the
-// environment map.
-uint64_t sceneBytes(const Scene& scene);
-
 // The process's resident bytes now (Linux /proc/self/statm; 0 where unavailable).
 uint64_t residentBytes();
 
