@@ -1111,7 +1111,9 @@ std::string describeConfig(const BakeConfig& c) {
     for (const VolumeConfig& v : c.volumes) {
         j["volumes"].push_back(describeVolume(v));
     }
-    return j.dump();
+    // A config built in code (or an --env path) may hold bytes that are not UTF-8; dump() would
+    // throw on them, inside bake(). They are recorded as U+FFFD instead.
+    return j.dump(-1, ' ', false, Json::error_handler_t::replace);
 }
 
 Result<Environment> makeEnvironment(const EnvironmentConfig& config) {

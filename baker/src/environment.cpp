@@ -1,14 +1,18 @@
 // Lat-long environment maps through OpenImageIO (.hdr, .exr, or anything else it reads).
 //
 // The mapping from texels to directions is documented once, on Environment in scene.hpp.
+#include <algorithm>
 #include <cmath>
 #include <exception>
 #include <string>
 #include <vector>
 
+#include <sys/stat.h>
+
 #include <OpenImageIO/imageio.h>
 
 #include "probekit/baker/scene.hpp"
+#include "probekit/formats/file_io.hpp"
 
 namespace probekit::baker {
 namespace {
@@ -18,6 +22,15 @@ namespace {
 // tolerance of 2 are accepted; anything further off (a cube-map cross, a 1:1 angular probe) is
 // not a lat-long map and is rejected rather than silently sampled with the wrong mapping.
 constexpr double kAspectTolerance = 0.05;
+
+// The largest map read, checked from the image header before the pixels are allocated: 2^26
+// pixels (8192 x 8192, the glTF image limit; a 2:1 map of 11585 x 5792) are 1 GiB of linear
+// RGBA floats. A probe volume's SH is band-limited to l <= 2, so a few hundred texels across
+// already carry everything it keeps; the limit only stops a forged header (a few bytes claiming
+// 10^9 pixels) from allocating what it claims.
+constexpr uint64_t kMaxEnvironmentPixels = uint64_t(1) << 26;
+// Channels read: RGB, and alpha if present; further channels (an EXR's depth, ids) are skipped.
+constexpr int kMaxChannelsRead = 4;
 
 } // namespace
 
@@ -32,9 +45,15 @@ Result<Environment> loadLatLongEnvironment(const std::filesystem::path& path, fl
     if (!std::isfinite(rotation_deg)) {
         return makeError(ErrorCode::NonFinite, file + ": environment rotation must be finite");
     }
-    std::error_code ec;
-    if (!std::filesystem::is_regular_file(path, ec)) {
+    // stat, not open: a FIFO named as the map must be refused, not waited on.
+    struct stat info {};
+    if (::stat(file.c_str(), &info) != 0) {
         return makeError(ErrorCode::Io, file + ": no such file");
+    }
+    if (!S_ISREG(info.st_mode)) {
+        return makeError(ErrorCode::Io, file +
+                                            ": the environment map is not a regular file (it is " +
+                                            std::string(fileTypeText(info.st_mode)) + ")");
     }
     try {
         auto input = OIIO::ImageInput::open(file);
@@ -45,12 +64,20 @@ Result<Environment> loadLatLongEnvironment(const std::filesystem::path& path, fl
         const OIIO::ImageSpec& spec = input->spec();
         const int width = spec.width;
         const int height = spec.height;
-        const int channels = spec.nchannels;
+        const int channels = std::min(spec.nchannels, kMaxChannelsRead);
         if (width <= 0 || height <= 0 || channels <= 0 || spec.depth > 1) {
             return makeError(ErrorCode::InvalidArgument,
                              file + ": not a 2D image (" + std::to_string(width) + " x " +
                                  std::to_string(height) + " x " + std::to_string(spec.depth) +
                                  ", " + std::to_string(channels) + " channels)");
+        }
+        if (uint64_t(width) * uint64_t(height) > kMaxEnvironmentPixels) {
+            return makeError(ErrorCode::OutOfRange,
+                             file + ": " + std::to_string(width) + " x " + std::to_string(height) +
+                                 " pixels, more than the environment map limit of " +
+                                 std::to_string(kMaxEnvironmentPixels) +
+                                 " (8192 x 8192); downsample it (a probe volume keeps only its "
+                                 "lowest 9 SH coefficients)");
         }
         const double aspect = double(width) / double(height);
         if (std::abs(aspect / 2.0 - 1.0) > kAspectTolerance) {

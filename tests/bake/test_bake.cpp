@@ -87,6 +87,21 @@ TEST(BakeConfig, ErrorsNameFileAndField) {
     test::expectConfigErrors(cases);
 }
 
+// Names and paths in a config built in code are bytes; the description recorded in the file is
+// JSON, so bytes that are not UTF-8 become U+FFFD instead of a json::type_error thrown from
+// inside bake() (found while fixing issue 17's invalid UTF-8 in `probekit info`).
+TEST(BakeConfig, DescriptionReplacesBytesThatAreNotUtf8) {
+    BakeConfig c;
+    c.volumes.resize(1);
+    c.volumes[0].name = "hall\xff\xfe";
+    c.environment.type = EnvironmentConfig::Type::LatLong;
+    c.environment.file = "sky\xc3.hdr";
+    std::string described;
+    ASSERT_NO_THROW(described = describeConfig(c));
+    EXPECT_NE(described.find("\"hall\xef\xbf\xbd\xef\xbf\xbd\""), std::string::npos) << described;
+    EXPECT_NE(described.find("sky\xef\xbf\xbd.hdr"), std::string::npos) << described;
+}
+
 TEST(BakeVolumes, AutoResolutionRoundsToPowersOfTwoAndCaps) {
     Scene scene; // placement needs only nodes and bounds
     scene.bounds = {glm::vec3(0), glm::vec3(2.0f, 0.9f, 40.0f)};

@@ -19,6 +19,7 @@
 #include <tuple>
 #include <vector>
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <gtest/gtest.h>
@@ -929,6 +930,34 @@ TEST(EnvironmentLatLong, GreyMapsAndPfmOrientation) {
     ASSERT_EQ(image.height, 2u);
     EXPECT_EQ(image.texels[0], glm::vec4(10, 10, 10, 1)) << "row 0 is the top";
     EXPECT_EQ(image.texels[7], glm::vec4(4, 4, 4, 1));
+}
+
+// Issue 17: the map is untrusted input like the scene. A FIFO is refused without waiting on it
+// (before, is_regular_file refused it too, but as "no such file"), and a header claiming more
+// pixels than the limit is refused before its pixels are allocated (the file holds 20 bytes).
+TEST(EnvironmentErrors, SpecialFilesAndForgedHeaders) {
+    TempDir dir;
+    const fs::path fifo = dir / "sky.hdr";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    const Result<Environment> from_fifo = loadLatLongEnvironment(fifo, 1.0f, 0.0f);
+    ASSERT_FALSE(from_fifo.ok());
+    EXPECT_EQ(from_fifo.error().message,
+              fifo.string() + ": the environment map is not a regular file (it is a FIFO)");
+    fs::create_directories(dir / "folder.hdr");
+    const Result<Environment> from_dir = loadLatLongEnvironment(dir / "folder.hdr", 1.0f, 0.0f);
+    ASSERT_FALSE(from_dir.ok());
+    EXPECT_TRUE(contains(from_dir.error().message, "(it is a directory)"))
+        << from_dir.error().message;
+
+    const fs::path forged = dir / "forged.pfm";
+    writeText(forged, "PF\n40000 20000\n-1.0\n");
+    const Result<Environment> huge = loadLatLongEnvironment(forged, 1.0f, 0.0f);
+    ASSERT_FALSE(huge.ok());
+    EXPECT_EQ(huge.error().code, ErrorCode::OutOfRange);
+    EXPECT_TRUE(contains(huge.error().message, forged.string() +
+                                                   ": 40000 x 20000 pixels, more than the "
+                                                   "environment map limit of 67108864"))
+        << huge.error().message;
 }
 
 TEST(EnvironmentErrors, MissingUnreadableWrongShapeAndBadTexels) {
