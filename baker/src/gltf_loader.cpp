@@ -214,6 +214,7 @@ public:
         checkNodeForest();
         const std::vector<int> roots = sceneRoots(scene_index);
         const std::vector<int> reachable = traverse(roots);
+        checkInstancedGrowth(reachable);
         for (const int node_index : reachable) {
             loadNode(node_index);
         }
@@ -610,6 +611,91 @@ private:
             }
         }
         return reachable;
+    }
+
+    // Every node that uses a mesh adds a transformed copy of its triangles to the scene, so a
+    // small file can name one large (or sparse, zero-backed) accessor from many nodes. The
+    // per-primitive checks in loadPrimitive catch that only once the first copies exist (a 1.3
+    // KB file with a 2^24-vertex sparse accessor under 21 nodes held 1.9 GB, 12 s in, before
+    // its refusal). This sums the scene arrays every instance will add, from the accessor
+    // counts alone, and refuses before the first is built. It is a lower bound of what loading
+    // charges (the per-primitive work arrays come on top), so it never refuses a scene the
+    // per-primitive checks would take; malformed accessors and meshes are left to those checks,
+    // which name the precise field.
+    void checkInstancedGrowth(const std::vector<int>& reachable) {
+        constexpr uint64_t kVertexBytes = sizeof(glm::vec3) + sizeof(glm::vec2) + sizeof(glm::vec3);
+        constexpr uint64_t kTriangleBytes = sizeof(glm::uvec3) + sizeof(uint32_t) + sizeof(int32_t);
+        // An accessor's count, when it is plausible: backed by nothing (zeros and sparse
+        // values, the amplifying case), or fitting its buffer view. A count its view cannot
+        // hold is left to readAccessor, whose error names the accessor and the view.
+        const auto count_of = [&](int index) -> uint64_t {
+            if (index < 0 || static_cast<size_t>(index) >= m_model.accessors.size()) {
+                return 0;
+            }
+            const tinygltf::Accessor& accessor = m_model.accessors[static_cast<size_t>(index)];
+            if (accessor.bufferView < 0) {
+                return accessor.count;
+            }
+            if (static_cast<size_t>(accessor.bufferView) >= m_model.bufferViews.size()) {
+                return 0;
+            }
+            const uint64_t element =
+                componentSize(accessor.componentType) * componentCount(accessor.type);
+            const uint64_t view =
+                m_model.bufferViews[static_cast<size_t>(accessor.bufferView)].byteLength;
+            return element > 0 && accessor.count <= view / element ? accessor.count : 0;
+        };
+        std::vector<uint64_t> instances(m_model.meshes.size(), 0);
+        for (const int node_index : reachable) {
+            const int mesh = m_model.nodes[static_cast<size_t>(node_index)].mesh;
+            if (mesh >= 0 && static_cast<size_t>(mesh) < instances.size()) {
+                ++instances[static_cast<size_t>(mesh)];
+            }
+        }
+        // Counts x instances can pass 2^64 in a forged file: sum in long double, print clamped.
+        long double total = 0.0L;
+        long double vertices = 0.0L;
+        long double triangles = 0.0L;
+        size_t largest = 0;
+        long double largest_bytes = -1.0L;
+        for (size_t m = 0; m < instances.size(); ++m) {
+            const auto copies = static_cast<long double>(instances[m]);
+            long double mesh_bytes = 0.0L;
+            for (const tinygltf::Primitive& primitive : m_model.meshes[m].primitives) {
+                const auto position = primitive.attributes.find("POSITION");
+                if (primitive.mode < TINYGLTF_MODE_TRIANGLES ||
+                    position == primitive.attributes.end()) {
+                    continue;
+                }
+                const uint64_t v = count_of(position->second);
+                const uint64_t n = primitive.indices >= 0 ? count_of(primitive.indices) : v;
+                const uint64_t t =
+                    primitive.mode == TINYGLTF_MODE_TRIANGLES ? n / 3 : (n < 2 ? 0 : n - 2);
+                mesh_bytes +=
+                    copies * ((long double)(v)*kVertexBytes + (long double)(t)*kTriangleBytes);
+                vertices += copies * (long double)(v);
+                triangles += copies * (long double)(t);
+            }
+            total += mesh_bytes;
+            if (mesh_bytes > largest_bytes) {
+                largest_bytes = mesh_bytes;
+                largest = m;
+            }
+        }
+        const auto clamped = [](long double x) {
+            return x >= 1.8e19L ? UINT64_MAX : static_cast<uint64_t>(x);
+        };
+        const uint64_t bytes = clamped(total);
+        if (bytes > 0 && !m_budget.fits(bytes)) {
+            fail(ErrorCode::OutOfRange,
+                 m_budget.refusal(
+                     "adding every mesh instance to the scene (" +
+                         std::to_string(clamped(vertices)) + " vertices and " +
+                         std::to_string(clamped(triangles)) + " triangles; the most from meshes[" +
+                         std::to_string(largest) + "]" + quoted(m_model.meshes[largest].name) +
+                         ", used by " + std::to_string(instances[largest]) + " nodes)",
+                     bytes));
+        }
     }
 
     void loadNode(int node_index) {

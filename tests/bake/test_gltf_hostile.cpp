@@ -145,8 +145,9 @@ void addLight(json& doc, const json& light, const json& node_light = 0) {
 }
 
 // The quad file whose mesh is instead `count` VEC3 positions backed by nothing but one sparse
-// value (accessors[1]), instanced by 16 nodes.
-fs::path sparseInstances(const TempDir& dir, const std::string& name, uint32_t count) {
+// value (accessors[1]), instanced by `instances` nodes.
+fs::path sparseInstances(const TempDir& dir, const std::string& name, uint32_t count,
+                         int instances = 16) {
     return quadFile(dir, name, [&](json& d) {
         d["accessors"].push_back({{"componentType", 5126},
                                   {"count", count},
@@ -157,7 +158,7 @@ fs::path sparseInstances(const TempDir& dir, const std::string& name, uint32_t c
                                     {"values", {{"bufferView", 0}}}}}});
         d["meshes"] = {{{"primitives", {{{"attributes", {{"POSITION", 1}}}}}}}};
         d["nodes"] = json::array();
-        for (int i = 0; i < 16; ++i) {
+        for (int i = 0; i < instances; ++i) {
             d["nodes"].push_back({{"mesh", 0}});
             d["scenes"][0]["nodes"][i] = i;
         }
@@ -351,13 +352,16 @@ TEST(GltfHostile, AssetRootsAllowMoreFoldersButNeverAbsoluteUris) {
 TEST(GltfHostile, ASparseAccessorCannotAmplifyBeyondTheMemoryLimit) {
     TempDir dir;
     // 2^24 VEC3 positions backed by nothing but one sparse value, instanced by 16 nodes: a
-    // 2 KB file that expands to 200 MB per instance.
+    // 2 KB file whose instances expand to 16 x (2^24 x 32 + 5592405 x 20) bytes of scene
+    // arrays. The sum is refused before the first instance is built (before the up-front sum,
+    // the first copies were built and held first: 1.9 GB, 12 s with 21 instances at 4 GiB).
     const fs::path file = sparseInstances(dir, "sparse.gltf", 1 << 24);
     LoadOptions options;
     options.maxMemoryBytes = 128ull << 20;
     const std::string message = loadError(file, options);
-    EXPECT_TRUE(contains(message, at(file, "accessors[1] (meshes[0].primitives[0] POSITION) "
-                                           "(16777216 x 3 x 4 bytes, expanded) needs 201326592 "
+    EXPECT_TRUE(contains(message, at(file, "adding every mesh instance to the scene (268435456 "
+                                           "vertices and 89478480 triangles; the most from "
+                                           "meshes[0], used by 16 nodes) needs 10379504192 "
                                            "bytes; with ")))
         << message;
     EXPECT_TRUE(contains(message, " bytes already loaded that exceeds the memory limit of "
@@ -372,14 +376,18 @@ TEST(GltfHostile, TheSceneItselfIsChargedAsItGrows) {
     // 1048576 x (12 world position + 4 remap) bytes + 1048576 / 8 + 1 finite flags + 349525 x 12
     // corners while the instance loads, and 1048576 x (12 + 8 + 12) + 349525 x (12 + 4 + 4)
     // bytes of Scene arrays for the first instance.
-    const fs::path file = sparseInstances(dir, "instances.gltf", 1 << 20);
+    // One instance: its scene arrays (40544932 bytes) pass the up-front sum at 64 MiB, the
+    // primitive's work arrays on top of them do not.
+    const fs::path one = sparseInstances(dir, "one_instance.gltf", 1 << 20, 1);
     LoadOptions options;
     options.maxMemoryBytes = 64ull << 20;
-    EXPECT_TRUE(contains(loadError(file, options),
-                         at(file, "meshes[0].primitives[0] (1048576 vertices, 349525 triangles, "
-                                  "expanded and added to the scene) needs 61647521 bytes; with ")))
-        << loadError(file, options);
-    // With 256 MiB some instances load; the one refused counts those already in the Scene.
+    EXPECT_TRUE(contains(loadError(one, options),
+                         at(one, "meshes[0].primitives[0] (1048576 vertices, 349525 triangles, "
+                                 "expanded and added to the scene) needs 61647521 bytes; with ")))
+        << loadError(one, options);
+    // Five instances (202724660 bytes up front) pass the sum at 256 MiB; the scene's arrays,
+    // charged as they grow (capacity doubling included), stop a later instance.
+    const fs::path file = sparseInstances(dir, "instances.gltf", 1 << 20, 5);
     options.maxMemoryBytes = 256ull << 20;
     const std::string message = loadError(file, options);
     const size_t with = message.find("bytes; with ");
