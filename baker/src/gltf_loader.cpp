@@ -693,7 +693,8 @@ private:
                          std::to_string(clamped(vertices)) + " vertices and " +
                          std::to_string(clamped(triangles)) + " triangles; the most from meshes[" +
                          std::to_string(largest) + "]" + quoted(m_model.meshes[largest].name) +
-                         ", used by " + std::to_string(instances[largest]) + " nodes)",
+                         ", used by " + std::to_string(instances[largest]) +
+                         (instances[largest] == 1 ? " node)" : " nodes)"),
                      bytes));
         }
     }

@@ -165,6 +165,14 @@ uint64_t MemoryPhase::bytes() const {
     return total;
 }
 
+uint64_t MemoryPhase::ownBytes(bool with_adapting) const {
+    uint64_t total = 0;
+    for (const MemoryTerm& t : terms) {
+        total += t.external || (t.adapts && !with_adapting) ? 0 : t.bytes;
+    }
+    return total;
+}
+
 uint64_t residentBytes() {
     std::ifstream statm("/proc/self/statm");
     uint64_t size = 0;
@@ -199,7 +207,8 @@ MemoryPrediction predictBakeMemory(const MemoryInputs& in) {
     const uint64_t vertices = scene.positions.size();
 
     // Held in every phase.
-    const MemoryTerm process{"the process's libraries and other data", "", in.processBytes};
+    const MemoryTerm process{"the process's libraries and other data", "", in.processBytes, false,
+                             true};
     const MemoryTerm scene_term{"the scene's arrays (" + count(triangles) + " triangles, " +
                                     count(scene.images.size()) + " images)",
                                 "", sceneBytes(scene)};
@@ -284,7 +293,7 @@ MemoryPrediction predictBakeMemory(const MemoryInputs& in) {
             phase("baking " + label + "'s probes", {method, done, cascades, sampler}, true);
         if (v.layout == VolumeLayout::Bricked) {
             const uint64_t level0 = latticeProbes(v, 0);
-            const uint64_t working = brickedWorkingBytes(config, probes.bytes());
+            const uint64_t working = brickedWorkingBytes(config, probes.ownBytes());
             const uint64_t every = latticeProbes(v, v.bricks.maxLevel);
             const uint64_t bound = std::min(every, std::max(level0, working / kBakedProbeBytes));
             probes.terms.push_back({name + ": " + count(level0) + " level-0 lattice probes",
@@ -339,10 +348,7 @@ Result<void> checkBakeMemory(const MemoryPrediction& prediction, const BakeConfi
     const MemoryPhase* worst = nullptr;
     uint64_t worst_bytes = 0;
     for (const MemoryPhase& p : prediction.phases) {
-        uint64_t bytes = 0;
-        for (const MemoryTerm& t : p.terms) {
-            bytes += t.adapts ? 0 : t.bytes;
-        }
+        const uint64_t bytes = p.ownBytes(false);
         if (bytes > worst_bytes) {
             worst_bytes = bytes;
             worst = &p;
@@ -351,11 +357,16 @@ Result<void> checkBakeMemory(const MemoryPrediction& prediction, const BakeConfi
     if (worst == nullptr || worst_bytes <= limit) {
         return {};
     }
-    std::vector<MemoryTerm> terms = worst->terms;
+    std::vector<MemoryTerm> terms;
+    for (const MemoryTerm& t : worst->terms) {
+        if (!t.external) {
+            terms.push_back(t);
+        }
+    }
     std::stable_sort(terms.begin(), terms.end(),
                      [](const MemoryTerm& a, const MemoryTerm& b) { return a.bytes > b.bytes; });
     std::string message =
-        "predicted peak memory " + formatBytes(worst_bytes) + " (" + worst->name +
+        "the bake's predicted peak memory " + formatBytes(worst_bytes) + " (" + worst->name +
         ") exceeds max_memory_mb = " + std::to_string(config.maxMemoryBytes >> 20) + ":";
     std::string advice;
     // The largest term, and the next ones while they hold a quarter of the peak.

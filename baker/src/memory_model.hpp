@@ -48,12 +48,21 @@ struct MemoryTerm {
     // Bricked refinement, counted at its bound: it shrinks to the room left, so it never makes
     // a bake fail.
     bool adapts = false;
+    // Held before the bake began (the process's libraries, whatever an application holds):
+    // part of the predicted peak the report compares with the measured one, but not of what
+    // max_memory_mb limits, which is the bake's own memory. Counting it would refuse every bake
+    // in an application that already holds more than max_memory_mb, and every bake of a
+    // sanitizer build (whose shadow memory alone is about 270 MiB resident).
+    bool external = false;
 };
 
 struct MemoryPhase {
     std::string name; // "build", "prepare", "volumes[0] probes", "write"
     std::vector<MemoryTerm> terms;
     uint64_t bytes() const;
+    // The bytes max_memory_mb limits: bytes() less the external terms and, with adapting too,
+    // less the terms that shrink to fit.
+    uint64_t ownBytes(bool with_adapting = true) const;
 };
 
 struct MemoryPrediction {
@@ -90,11 +99,12 @@ uint64_t brickedWorkingBytes(const BakeConfig& config, uint64_t other_bytes);
 
 MemoryPrediction predictBakeMemory(const MemoryInputs& in);
 
-// Fails when the peak, bricked refinement not counted (it shrinks to fit), exceeds
-// max(max_memory_mb, kMinWorkingBytes), naming the largest terms: "predicted peak memory 6.2 GiB
-// exceeds max_memory_mb = 4096: vpl.count 16777216 VPLs and their light tree need 6.0 GiB
-// (lower --vpl-count or raise --max-memory)". Below kMinWorkingBytes (the bake's own base)
-// max_memory_mb bounds the grids alone (planVolumes) and bricked volumes' GPU bytes.
+// Fails when the bake's own peak (the process's earlier bytes and bricked refinement, which
+// shrinks to fit, not counted) exceeds max(max_memory_mb, kMinWorkingBytes), naming the largest
+// terms: "the bake's predicted peak memory 5.7 GiB (tracing the VPLs) exceeds max_memory_mb =
+// 4096: vpl.count 16777216 VPLs and their light tree need 5.7 GiB (lower --vpl-count, or raise
+// --max-memory)". Below kMinWorkingBytes max_memory_mb bounds the grids alone (planVolumes) and
+// bricked volumes' GPU bytes.
 Result<void> checkBakeMemory(const MemoryPrediction& prediction, const BakeConfig& config);
 
 // "1.4 GiB", "312 MiB".

@@ -210,7 +210,7 @@ check "no output after a refused URI" test ! -e out7.pvol
 expect 0 "wrote out8.pvol" -- "$pk" bake assets/scene/box.gltf -o out8.pvol \
     --asset-root assets/shared --resolution 2,2,2 --samples 4
 "$pk" scene engine-mm -o engine.gltf >/dev/null
-expect 1 "engine.gltf: meshes\[[0-9]+\] .* needs [0-9]+ bytes; with [0-9]+ bytes already loaded that exceeds the memory limit of 1048576 bytes" -- \
+expect 1 "engine.gltf: adding every mesh instance to the scene \(19760 vertices and 32568 triangles; the most from meshes\[2\] \('bolts'\), used by 1 node\) needs [0-9]+ bytes; with [0-9]+ bytes already loaded that exceeds the memory limit of 1048576 bytes" -- \
     "$pk" bake engine.gltf -o out9.pvol --resolution 2,2,2 --max-memory 1
 
 # Coordinates beyond what float32 tracing can do are refused before anything is traced.
@@ -230,7 +230,12 @@ expect 2 "max_memory_mb: must be in 1..1073741824 \(got 17592186044416\)" -- \
 check "no output after a refused bake" test ! -e mem1.pvol -a ! -e mem2.pvol -a ! -e mem3.pvol
 # Prediction against the measured peak of the same process (--report): within 25% for dense,
 # VPL and LPV bakes whose modelled terms are 100-300 MiB beside ~130 MiB of libraries; for a
-# bricked volume the prediction bounds the peak.
+# bricked volume the prediction bounds the peak. Not under a sanitizer (tools/sanitize.sh sets
+# ASAN_OPTIONS): ASan's quarantine keeps freed blocks resident and its shadow memory grows with
+# the heap, so the measured peak there is not the bake's (the LPV bake measured 1.8x).
+if [[ -n "${ASAN_OPTIONS:-}" ]]; then
+    echo "  memory prediction ratios skipped: sanitizer build"
+else
 report_field() { grep -oE "\"$2\": [0-9]+" "$1" | head -1 | grep -oE "[0-9]+$"; }
 predicted_within() { # predicted_within REPORT LOW HIGH: LOW <= predicted / measured <= HIGH
     local p m
@@ -256,6 +261,7 @@ cat > mem7.json.in <<'JSON'
 JSON
 "$pk" bake courtyard.gltf -o mem7.pvol -q --config mem7.json.in --report mem7.json
 check "bricked bake: the prediction bounds the peak" predicted_within mem7.json 1.0 100
+fi
 
 head -c 100 small.pvol >truncated.pvol
 expect 1 "truncated.pvol" -- "$pk" validate truncated.pvol
