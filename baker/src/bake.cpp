@@ -652,6 +652,37 @@ void addBrickedOutcome(const BrickedOutcome& b, BakeResult& result) {
     result.warnings.insert(result.warnings.end(), b.warnings.begin(), b.warnings.end());
 }
 
+float maxComponent(glm::vec3 v) {
+    return std::max({v.x, v.y, v.z});
+}
+
+// makeVolume refuses coefficients that are not finite or beyond the texel bound (volume.hpp).
+// In a bake that means the light was too strong for float sums somewhere (the loader refuses
+// intensities and emission above kMaxEmission, but a light or emitter almost touching a probe can
+// still overflow): name the scene and its brightest light, so the user knows where to look.
+Result<Volume> checkedVolume(const Scene& scene, Result<Volume> volume) {
+    if (volume) {
+        return volume;
+    }
+    std::string where = scene.source.empty() ? std::string() : scene.source + ": ";
+    std::string hint;
+    const PunctualLight* brightest = nullptr;
+    for (const PunctualLight& light : scene.lights) {
+        const float peak = maxComponent(light.intensity);
+        if (brightest == nullptr || peak > maxComponent(brightest->intensity)) {
+            brightest = &light;
+        }
+    }
+    if (brightest != nullptr) {
+        char text[64];
+        std::snprintf(text, sizeof text, "%g", double(maxComponent(brightest->intensity)));
+        hint = " (the scene's brightest light" +
+               (brightest->name.empty() ? std::string() : " '" + brightest->name + "'") +
+               " has intensity " + text + "; check light intensities, emission and units)";
+    }
+    return makeError(volume.error().code, where + volume.error().message + hint);
+}
+
 Result<Volume> bakeBrickedVolume(BakeRun& run, const VolumeDesc& desc, const VolumeConfig& vc,
                                  uint32_t volume_index, const ProbeBatchFn& bake_batch,
                                  BakeResult& result) {
@@ -665,7 +696,7 @@ Result<Volume> bakeBrickedVolume(BakeRun& run, const VolumeDesc& desc, const Vol
     if (!b.visibility.empty()) {
         run.rays.fetch_add(kVisibilityRaysPerProbe * b.desc.probeCount());
     }
-    return makeVolume(b.desc, b.probes, b.validity, b.visibility);
+    return checkedVolume(run.scene, makeVolume(b.desc, b.probes, b.validity, b.visibility));
 }
 
 Result<Volume> bakeDenseVolume(BakeRun& run, const VolumeDesc& desc, const ProbeBatchFn& bake_batch,
@@ -696,7 +727,7 @@ Result<Volume> bakeDenseVolume(BakeRun& run, const VolumeDesc& desc, const Probe
         vis = traceVolumeVisibility(run.tracer, desc, validity, run.threads);
         run.rays.fetch_add(kVisibilityRaysPerProbe * count);
     }
-    return makeVolume(desc, probes, validity, vis);
+    return checkedVolume(run.scene, makeVolume(desc, probes, validity, vis));
 }
 
 Result<Volume> bakeVolume(BakeRun& run, const MethodState& method, const VolumeDesc& desc,

@@ -248,6 +248,11 @@ Admits positive() {
 Admits nonNegative() {
     return number(0.0, INFINITY);
 }
+// Radiance and its scales: kMaxEmission (scene.hpp) at most, far above any real light (the
+// sun's disc is about 2e7 W/(sr m^2)), so that the bake's float sums stay finite.
+Admits emission() {
+    return number(0.0, kMaxEmission);
+}
 Admits flag() {
     Admits a;
     a.kind = Kind::Flag;
@@ -583,7 +588,7 @@ const std::vector<Field<BakeConfig>>& validityFields() {
 const std::vector<Field<EnvironmentConfig>>& environmentFields() {
     using Type = EnvironmentConfig::Type;
     static const std::vector<Field<EnvironmentConfig>> fields = {
-        shownWhen(field("intensity", &EnvironmentConfig::intensity, nonNegative(), "",
+        shownWhen(field("intensity", &EnvironmentConfig::intensity, emission(), "",
                         "environment: radiance scale"),
                   {[](const EnvironmentConfig& e) { return e.type != Type::Black; }}),
         shownWhen(field("rotation_deg", &EnvironmentConfig::rotationDeg, anyNumber(), "degrees",
@@ -837,7 +842,7 @@ Json describeVolume(const VolumeConfig& v) {
 void checkEnvironment(const Reader& r, const EnvironmentConfig& e, const std::string& path) {
     if (e.type == EnvironmentConfig::Type::Constant) {
         for (int c = 0; c < 3; ++c) {
-            r.check(nonNegative(), e.radiance[c], path + ".radiance[" + std::to_string(c) + "]");
+            r.check(emission(), e.radiance[c], path + ".radiance[" + std::to_string(c) + "]");
         }
     }
 }

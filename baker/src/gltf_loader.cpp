@@ -296,6 +296,14 @@ private:
                     fail(ErrorCode::OutOfRange, field + ".emissiveFactor must be finite and >= 0");
                 }
                 material.emission[c] = static_cast<float>(emissive[c] * strength);
+                if (std::isfinite(material.emission[c]) && emissive[c] * strength > kMaxEmission) {
+                    fail(ErrorCode::OutOfRange,
+                         field + ".emissiveFactor[" + std::to_string(c) + "] " +
+                             numberText(emissive[c]) +
+                             " x KHR_materials_emissive_strength.emissiveStrength " +
+                             numberText(strength) + " is above " + numberText(kMaxEmission) +
+                             " W/(sr m^2), the brightest emission probekit bakes");
+                }
                 if (!std::isfinite(material.emission[c])) {
                     fail(ErrorCode::NonFinite,
                          field + ".emissiveFactor[" + std::to_string(c) + "] " +
@@ -1224,6 +1232,14 @@ private:
                                            " x color (" + numberText(colour.x) + ", " +
                                            numberText(colour.y) + ", " + numberText(colour.z) +
                                            ") overflows a 32-bit float");
+        }
+        const glm::dvec3 exact = colour * source.intensity; // compared before rounding to float
+        if (std::max({exact.x, exact.y, exact.z}) > kMaxEmission) {
+            fail(ErrorCode::OutOfRange,
+                 field + ".intensity " + numberText(source.intensity) + " x color (" +
+                     numberText(colour.x) + ", " + numberText(colour.y) + ", " +
+                     numberText(colour.z) + ") is above " + numberText(kMaxEmission) +
+                     ", the brightest light probekit bakes (the sun is about 1.2e5 lux)");
         }
         if (!std::isfinite(source.range) || source.range < 0) {
             fail(ErrorCode::OutOfRange, field + ".range must be finite and > 0 (absent: infinite)");

@@ -714,6 +714,30 @@ TEST(GltfHostile, LightValuesAreCheckedAsTheFloatsTheyBecome) {
               at(emissive, "materials[0].emissiveFactor[0] 1 x "
                            "KHR_materials_emissive_strength.emissiveStrength 1e+300 overflows a "
                            "32-bit float"));
+    // Finite in float but beyond what the bake's float sums hold (a 3e38 light gave "volume
+    // 'volume': probe 0 has a non-finite SH coefficient", naming neither file nor light).
+    const fs::path float_max = quadFile(dir, "float_max.gltf", [](json& d) {
+        addLight(d, {{"type", "point"}, {"intensity", 3e38}});
+    });
+    EXPECT_EQ(loadError(float_max),
+              at(float_max, light + ".intensity 3e+38 x color (1, 1, 1) is above 1e+20, the "
+                                    "brightest light probekit bakes (the sun is about 1.2e5 "
+                                    "lux)"));
+    const fs::path glowing = quadFile(dir, "glowing.gltf", [](json& d) {
+        d["materials"] = {
+            {{"emissiveFactor", {0, 0.5, 0}},
+             {"extensions", {{"KHR_materials_emissive_strength", {{"emissiveStrength", 1e21}}}}}}};
+        d["meshes"][0]["primitives"][0]["material"] = 0;
+    });
+    EXPECT_EQ(loadError(glowing),
+              at(glowing, "materials[0].emissiveFactor[1] 0.5 x "
+                          "KHR_materials_emissive_strength.emissiveStrength 1e+21 is above 1e+20 "
+                          "W/(sr m^2), the brightest emission probekit bakes"));
+    // At the bound, the light loads.
+    const fs::path bright = quadFile(dir, "bright.gltf", [](json& d) {
+        addLight(d, {{"type", "point"}, {"intensity", 1e20}});
+    });
+    EXPECT_TRUE(loadGltf(bright).ok());
 }
 
 TEST(GltfHostile, NodeCyclesAreErrorsWithOrWithoutScenes) {

@@ -219,7 +219,15 @@ TEST(Settings, BakeValidatesAConfigBuiltInCode) {
              c.environment.type = EnvironmentConfig::Type::Constant;
              c.environment.radiance = glm::vec3(1.0f, -1.0f, 0.0f);
          },
-         "bake config: environment.radiance[1]: must be >= 0"},
+         "bake config: environment.radiance[1]: must be in [0, 1e+20] (got -1.0)"},
+        // kMaxEmission: a radiance that the bake's float sums would overflow (3e38 gave "probe
+        // 0 has a non-finite SH coefficient").
+        {[](BakeConfig& c) {
+             c.environment.type = EnvironmentConfig::Type::Constant;
+             c.environment.radiance = glm::vec3(3e38f, 1.0f, 1.0f);
+         },
+         "bake config: environment.radiance[0]: must be in [0, 1e+20] (got "
+         "3.0000000054977558e+38)"},
     };
     for (const Case& c : cases) {
         SCOPED_TRACE(c.message);

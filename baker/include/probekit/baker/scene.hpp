@@ -34,6 +34,14 @@ namespace probekit::baker {
 using Image = RgbaImage;
 using Environment = probekit::Environment;
 
+// The largest light intensity (W/sr, or W/m^2 for directional lights, per channel) and emitted
+// or environment radiance (W/(sr m^2)) a scene may hold; the loader and the bake config refuse
+// more. The sun is about 1.2e5 lux and the brightest real emitters' radiance about 1e9, so
+// anything beyond is an authoring or unit error, and the bound keeps the bake's float sums
+// finite: a point light of 1e20 W/sr 1 mm from a probe gives 1e26 W/m^2, below the texel bound
+// of 1e30 (formats/volume.hpp).
+constexpr double kMaxEmission = 1e20;
+
 struct Material {
     std::string name;
     glm::vec3 baseColor{1.0f}; // linear albedo factor, each channel in [0, 1]
