@@ -23,7 +23,7 @@ uint32_t invertCdf(const T* cdf, uint32_t count, double u) {
 
 } // namespace
 
-LightSampler::LightSampler(const Scene& scene) : m_environment(scene.environment) {
+LightSampler::LightSampler(const Scene& scene) {
     // Emissive triangles, weighted by area x luminance of the emission factor.
     std::vector<double> weights;
     for (uint32_t tri = 0; tri < uint32_t(scene.triangles.size()); ++tri) {

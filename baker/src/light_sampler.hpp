@@ -30,7 +30,7 @@ namespace probekit::baker {
 
 class LightSampler {
 public:
-    // `scene` must outlive the sampler (its environment is read on every query).
+    // Copies what it samples from `scene` (emitter geometry, environment CDFs and rotation).
     explicit LightSampler(const Scene& scene);
 
     struct EmitterSample {
@@ -61,8 +61,6 @@ public:
     float environmentPdf(glm::vec3 dir) const;
 
 private:
-    const Environment& m_environment;
-
     // Emitters: their geometry (kept together for cache locality when sampling), CDF over them
     // (size + 1 entries, last exactly 1), and a dense per-triangle area pdf (empty when the
     // scene has no emitter).
