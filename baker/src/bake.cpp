@@ -475,6 +475,9 @@ struct BakeRun {
     std::atomic<uint64_t> probesDone{0};
     std::atomic<uint64_t> rays{0};
     std::atomic<uint64_t> cutTotal{0};
+    std::atomic<uint64_t> samplesTotal{0}; // directions the path-traced parts took
+    std::atomic<uint32_t> samplesMax{0};
+    std::atomic<uint64_t> overTarget{0}; // adaptive: valid probes that stopped above the target
 
     double elapsedSeconds() const {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -538,10 +541,15 @@ PathSettings pathSettings(const BakeConfig& config, const MethodState& method) {
     PathSettings settings;
     settings.samples = config.path.samples;
     settings.maxBounces = config.path.maxBounces;
+    settings.noiseTarget = config.path.noiseTarget;
+    settings.maxSamples = config.path.maxSamples;
     if (method.lpvLights) {
         settings.samples =
             config.lpv.direct == LpvDirect::Traced ? config.lpv.directSamples : kLpvValiditySamples;
         settings.maxBounces = 0;
+        if (config.lpv.direct != LpvDirect::Traced) {
+            settings.noiseTarget = 0.0f; // the samples only decide validity
+        }
     }
     return settings;
 }
@@ -560,9 +568,12 @@ public:
           m_path(run.scene, run.tracer, pathSettings(m_config, method), desc.shOrder) {
         if (method.vplGatherer) {
             m_vpl.emplace(run.scene, run.tracer, *method.vplGatherer, *method.vplConfig,
-                          desc.shOrder);
+                          m_config.path, desc.shOrder);
         }
     }
+
+    // Adaptive sampling's target for the path-traced part (0: fixed sampling).
+    float noiseTarget() const { return m_path.settings().noiseTarget; }
 
     // The probe at `p`, seeded by (seed, volume, id); adds the VPL cut's size to `cut`.
     ProbeSample bakeProbe(glm::vec3 p, uint64_t id, uint64_t& cut) const {
@@ -571,6 +582,10 @@ public:
             const VplProbeSample v = m_vpl->bakeProbe(p, m_config.seed, m_volume, id);
             s = v.probe;
             cut += v.cutSize;
+        } else if (m_lpvCascades && m_path.settings().noiseTarget > 0.0f) {
+            // The traced direct light's noise counts against the whole probe, cascades included.
+            const sh::ShRgb cascades = lpvProbe(*m_lpvCascades, m_config.lpv, p, sh::ShRgb{});
+            s = m_path.bakeProbe(p, m_config.seed, m_volume, id, &cascades);
         } else {
             s = m_path.bakeProbe(p, m_config.seed, m_volume, id);
         }
@@ -600,14 +615,28 @@ void bakeBatch(BakeRun& run, const VolumeIntegrator& integrator,
     const auto body = [&](size_t begin, size_t end) {
         uint64_t rays = 0;
         uint64_t cut = 0;
+        uint64_t samples = 0;
+        uint32_t most = 0;
+        uint64_t over = 0;
+        const float target = integrator.noiseTarget();
         for (size_t i = begin; i < end; ++i) {
             const ProbeSample s = integrator.bakeProbe(positions[i], ids[i], cut);
             out_sh[i] = s.sh;
             out_valid[i] = probeValidity(s, run.config.backfaceThreshold);
             rays += s.rays;
+            samples += s.samples;
+            most = std::max(most, s.samples);
+            over += target > 0.0f && s.noise > target && out_valid[i] == kProbeValid ? 1 : 0;
         }
         run.rays.fetch_add(rays);
         run.cutTotal.fetch_add(cut);
+        run.samplesTotal.fetch_add(samples);
+        run.overTarget.fetch_add(over);
+        for (uint32_t seen = run.samplesMax.load(); most > seen;) {
+            if (run.samplesMax.compare_exchange_weak(seen, most)) {
+                break;
+            }
+        }
         run.probesDone.fetch_add(end - begin);
     };
     if (run.options.progress) {
@@ -764,6 +793,11 @@ void finishStats(const BakeRun& run, const MethodState& method, BakeStats& stats
     if (method.vplGatherer && run.totalProbes.load() > 0) {
         stats.vplMeanCut = double(run.cutTotal.load()) / double(run.totalProbes.load());
     }
+    if (run.totalProbes.load() > 0) {
+        stats.meanSamples = double(run.samplesTotal.load()) / double(run.totalProbes.load());
+    }
+    stats.maxSamples = run.samplesMax.load();
+    stats.probesOverTarget = run.overTarget.load();
 }
 
 // The metadata records what was actually baked: the resolved resolution of every volume and

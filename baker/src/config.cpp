@@ -515,6 +515,13 @@ const std::vector<Field<PathConfig>>& pathFields() {
               "path: directions per probe"),
         field("max_bounces", &PathConfig::maxBounces, whole(0, 1024), "", "path: maximum bounces",
               "--bounces"),
+        field("noise_target", &PathConfig::noiseTarget,
+              number(0.0, 1.0, false, true).because("0 turns adaptive sampling off"), "",
+              "adaptive sampling: trace each probe until its estimated relative noise is at most "
+              "this (the samples setting becomes the minimum; every method)",
+              "--noise-target"),
+        field("max_samples", &PathConfig::maxSamples, whole(1, 1u << 24), "",
+              "adaptive sampling: most directions per probe", "--max-samples"),
     };
     return fields;
 }

@@ -1,13 +1,18 @@
 #include "path_integrator.hpp"
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cassert>
 #include <cmath>
+#include <iterator>
+#include <limits>
 #include <numbers>
 #include <optional>
 
 #include <glm/geometric.hpp>
 
+#include "irradiance_error.hpp"
 #include "rng.hpp"
 #include "sampling.hpp"
 
@@ -32,37 +37,23 @@ PathIntegrator::PathIntegrator(const Scene& scene, const RayTracer& tracer, Path
     assert(tracer.triangleCount() == scene.triangles.size());
 }
 
+BatchPlan batchPlan(const PathSettings& settings) {
+    const uint32_t size = std::clamp(std::bit_floor(std::max(1u, settings.samples / kMinBatches)),
+                                     kMinBatchSize, kMaxBatchSize);
+    const uint32_t min_batches =
+        std::max(kMinBatches, uint32_t((uint64_t(settings.samples) + size - 1) / size));
+    const uint32_t max_batches = std::max(min_batches, settings.maxSamples / size);
+    return BatchPlan{size, min_batches, max_batches};
+}
+
 ProbeSample PathIntegrator::bakeProbe(glm::vec3 position, uint64_t seed, uint32_t volume_index,
-                                      uint64_t probe_index) const {
+                                      uint64_t probe_index, const sh::ShRgb* known) const {
     const ScopedFloatMode float_mode;
     const uint64_t probe_key = hashKeys(seed, volume_index, probe_index);
-    const auto sobol_seed = uint32_t(probe_key ^ (probe_key >> 32));
-    const uint32_t n = m_settings.samples;
-    const float weight = kFourPi / float(n);
-
-    ProbeSample result{};
-    sh::ShRgb block{};
-    uint64_t back_faces = 0;
-    uint64_t near_hits = 0;
-    for (uint32_t i = 0; i < n; ++i) {
-        const glm::vec3 dir = sphereDirection(scrambledSobol2d(i, sobol_seed));
-        Rng rng(hashKeys(probe_key, i));
-        PathStats stats;
-        const glm::vec3 radiance = incidentRadiance(position, dir, rng, stats);
-        probeDirectLight(position, 1.0f / float(n), rng, block, stats);
-        result.rays += stats.rays;
-        back_faces += stats.primaryBackFace ? 1 : 0;
-        near_hits += stats.primaryNear ? 1 : 0;
-        sh::addSample(block, m_order, dir, radiance, weight);
-        if ((i + 1) % kSamplesPerBlock == 0 || i + 1 == n) {
-            result.sh += block;
-            block = sh::ShRgb{};
-        }
-    }
-    result.backFaceFraction = float(double(back_faces) / double(n));
-    result.nearFraction = float(double(near_hits) / double(n));
 
     // Delta lights at the probe itself, projected exactly.
+    sh::ShRgb deltas{};
+    uint64_t delta_rays = 0;
     for (const PunctualLight& light : m_scene.lights) {
         const std::optional<LightDirection> to_light = directionToLight(light, position);
         if (!to_light) {
@@ -72,11 +63,134 @@ ProbeSample PathIntegrator::bakeProbe(glm::vec3 position, uint64_t seed, uint32_
         if (isBlack(irradiance)) {
             continue;
         }
-        ++result.rays;
+        ++delta_rays;
         if (!m_tracer.occluded(position, to_light->direction, to_light->distance)) {
-            result.sh += sh::projectDelta(to_light->direction, irradiance, m_order);
+            deltas += sh::projectDelta(to_light->direction, irradiance, m_order);
         }
     }
+
+    ProbeSample result = m_settings.noiseTarget > 0.0f
+                             ? bakeAdaptive(position, probe_key, deltas, known)
+                             : bakeFixed(position, probe_key);
+    result.sh += deltas;
+    result.rays += delta_rays;
+    return result;
+}
+
+void PathIntegrator::traceSample(glm::vec3 position, glm::vec3 dir, uint64_t rng_key, uint32_t n,
+                                 sh::ShRgb& sh, PathStats& stats) const {
+    Rng rng(rng_key);
+    const glm::vec3 radiance = incidentRadiance(position, dir, rng, stats);
+    probeDirectLight(position, 1.0f / float(n), rng, sh, stats);
+    sh::addSample(sh, m_order, dir, radiance, kFourPi / float(n));
+}
+
+ProbeSample PathIntegrator::bakeFixed(glm::vec3 position, uint64_t probe_key) const {
+    const auto sobol_seed = uint32_t(probe_key ^ (probe_key >> 32));
+    const uint32_t n = m_settings.samples;
+
+    ProbeSample result{};
+    sh::ShRgb block{};
+    uint64_t back_faces = 0;
+    uint64_t near_hits = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        const glm::vec3 dir = sphereDirection(scrambledSobol2d(i, sobol_seed));
+        PathStats stats;
+        traceSample(position, dir, hashKeys(probe_key, i), n, block, stats);
+        result.rays += stats.rays;
+        back_faces += stats.primaryBackFace ? 1 : 0;
+        near_hits += stats.primaryNear ? 1 : 0;
+        if ((i + 1) % kSamplesPerBlock == 0 || i + 1 == n) {
+            result.sh += block;
+            block = sh::ShRgb{};
+        }
+    }
+    result.backFaceFraction = float(double(back_faces) / double(n));
+    result.nearFraction = float(double(near_hits) / double(n));
+    result.samples = n;
+    return result;
+}
+
+ProbeSample PathIntegrator::bakeAdaptive(glm::vec3 position, uint64_t probe_key,
+                                         const sh::ShRgb& fixed_part,
+                                         const sh::ShRgb* known) const {
+    const BatchPlan plan = batchPlan(m_settings);
+    constexpr size_t kComponents = std::size(kAxisNormals) * 3;
+    const auto axisIrradiance = [this](const sh::ShRgb& sh) {
+        std::array<double, kComponents> x{};
+        for (size_t a = 0; a < std::size(kAxisNormals); ++a) {
+            const glm::vec3 e = sh::irradiance(sh, m_order, kAxisNormals[a]);
+            for (int c = 0; c < 3; ++c) {
+                x[3 * a + size_t(c)] = double(e[c]);
+            }
+        }
+        return x;
+    };
+    sh::ShRgb outside = fixed_part;
+    if (known != nullptr) {
+        outside += *known;
+    }
+    const std::array<double, kComponents> outside_axis = axisIrradiance(outside);
+
+    ProbeSample result{};
+    sh::ShRgb total{}; // sum of the batch estimates
+    // Welford's running mean and sum of squared deviations of the batch estimates.
+    std::array<double, kComponents> mean{}, m2{};
+    uint64_t back_faces = 0;
+    uint64_t near_hits = 0;
+    uint32_t batches = 0;
+    uint32_t next_check = plan.minBatches;
+    double noise = 0.0;
+    for (;;) {
+        for (; batches < next_check; ++batches) {
+            const uint64_t batch_key = hashKeys(probe_key, batches);
+            const auto sobol_seed = uint32_t(batch_key ^ (batch_key >> 32));
+            sh::ShRgb batch{}, block{};
+            for (uint32_t i = 0; i < plan.size; ++i) {
+                const glm::vec3 dir = sphereDirection(scrambledSobol2d(i, sobol_seed));
+                PathStats stats;
+                traceSample(position, dir, hashKeys(batch_key, i), plan.size, block, stats);
+                result.rays += stats.rays;
+                back_faces += stats.primaryBackFace ? 1 : 0;
+                near_hits += stats.primaryNear ? 1 : 0;
+                if ((i + 1) % kSamplesPerBlock == 0 || i + 1 == plan.size) {
+                    batch += block;
+                    block = sh::ShRgb{};
+                }
+            }
+            total += batch;
+            const std::array<double, kComponents> x = axisIrradiance(batch);
+            for (size_t c = 0; c < kComponents; ++c) {
+                const double delta = x[c] - mean[c];
+                mean[c] += delta / double(batches + 1);
+                m2[c] += delta * (x[c] - mean[c]);
+            }
+        }
+        // Variance of the mean of `batches` independent estimates, and the probe's magnitude.
+        double variance = 0.0, magnitude = 0.0;
+        for (size_t c = 0; c < kComponents; ++c) {
+            variance += m2[c] / double(batches - 1) / double(batches);
+            const double e = mean[c] + outside_axis[c];
+            magnitude += e * e;
+        }
+        noise = magnitude > 0.0  ? std::sqrt(variance / magnitude)
+                : variance > 0.0 ? std::numeric_limits<double>::infinity()
+                                 : 0.0;
+        if (noise <= double(m_settings.noiseTarget) || batches >= plan.maxBatches) {
+            break;
+        }
+        // Noise falls as 1 / sqrt(batches): trace to the predicted count, at most doubling.
+        const double ratio = noise / double(m_settings.noiseTarget);
+        const double wanted = std::ceil(double(batches) * std::min(ratio * ratio, 2.0));
+        next_check = std::min(plan.maxBatches, std::max(batches + 1, uint32_t(wanted)));
+    }
+    total *= 1.0f / float(batches);
+    result.sh = total;
+    const double n = double(batches) * plan.size;
+    result.backFaceFraction = float(double(back_faces) / n);
+    result.nearFraction = float(double(near_hits) / n);
+    result.samples = batches * plan.size;
+    result.noise = float(std::min(noise, double(std::numeric_limits<float>::max())));
     return result;
 }
 

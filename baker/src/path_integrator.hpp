@@ -24,8 +24,26 @@
 //    by it (unbiased).
 //  * maxBounces caps the number of diffuse vertices; the emission reached after the last one is
 //    still counted, so maxBounces = 0 keeps only what the probe sees directly. The cap
-//    truncates energy: in a closed room of albedo a the missing fraction is a^(maxBounces+1),
-//    so reference scenes need far more than the default 8 (the Cornell reference uses 64).
+//    truncates energy: in a closed room of albedo a the missing fraction is a^(maxBounces+1).
+//    The default, kDefaultMaxBounces = 64, puts that below the noise of any sample count (0.73^65
+//    = 1e-9 for the Cornell box's white); Russian roulette ends almost every path long before,
+//    so it costs nothing measurable against a cap of 8 (which lost 0.5-1.4% on the bundled
+//    rooms).
+//
+// Adaptive sampling (PathSettings::noiseTarget > 0). The directions come in batches of B, each
+// batch the first B points of its own independently scrambled Sobol sequence, so the batch
+// estimates are independent and each is unbiased; the probe is their mean. After every batch
+// from the minimum on, the probe's relative noise is estimated from the spread of the batch
+// estimates, in the project's error measure (irradiance at the six axis normals, three
+// channels; irradiance_error.hpp):
+//     noise^2 = sum_c s_c^2 / K  /  sum_c (mean_c + known_c)^2
+// with s_c^2 the unbiased sample variance of component c over the K batches and known_c the
+// exact or separately estimated light the caller adds (delta lights at the probe, a VPL gather,
+// LPV cascades). The probe stops once noise <= noiseTarget or K reaches the cap; otherwise it
+// traces up to the number of batches the estimate predicts, at most twice the present number,
+// before it checks again. The rule reads only the probe's own samples, so the result does not
+// depend on threads or order. A probe that is already invalid after the minimum (inside
+// geometry, probeValidity) stops there: its value is discarded.
 //
 // Punctual and directional lights are deltas: no sampled direction can hit them, so their
 // direct light at the probe is added analytically, projectDelta(dir to light,
@@ -47,21 +65,46 @@ namespace probekit::baker {
 
 class Rng;
 
+constexpr uint32_t kDefaultMaxBounces = 64;
+
+// Adaptive sampling: at least kMinBatches batches; a batch holds samples / kMinBatches
+// directions rounded down to a power of two, within kMinBatchSize..kMaxBatchSize.
+constexpr uint32_t kMinBatches = 8;
+constexpr uint32_t kMinBatchSize = 16;
+constexpr uint32_t kMaxBatchSize = 1024;
+
 struct PathSettings {
-    uint32_t samples = 1024;          // directions per probe (>= 1)
-    uint32_t maxBounces = 8;          // diffuse vertices per path; truncates energy (see above)
-    uint32_t rouletteStartBounce = 3; // first vertex whose continuation may be terminated
+    uint32_t samples = 1024; // directions per probe (>= 1); the minimum when adaptive
+    uint32_t maxBounces = kDefaultMaxBounces; // diffuse vertices per path (see above)
+    uint32_t rouletteStartBounce = 3;         // first vertex whose continuation may be terminated
     // Metres. Paths whose first hit is this far from the probe or farther stop there (as with
     // maxBounces = 0): the VPL method gathers the light those surfaces reflect from its VPLs
     // and path-traces only the near field (vpl_gather.hpp). Infinite for the path method.
     float nearDistance = kInfinity;
+    // Adaptive sampling (see above): the relative noise each probe is traced down to, 0 = off
+    // (exactly `samples` directions from one Sobol sequence); and the most directions a probe
+    // may take (raised to the minimum if below it).
+    float noiseTarget = 0.0f;
+    uint32_t maxSamples = 1u << 16;
 };
+
+// The batch size and the minimum and maximum batch counts adaptive sampling uses for `settings`.
+struct BatchPlan {
+    uint32_t size;
+    uint32_t minBatches;
+    uint32_t maxBatches;
+};
+BatchPlan batchPlan(const PathSettings& settings);
 
 struct ProbeSample {
     sh::ShRgb sh;           // radiance SH, world frame, `order` coefficients (rest zero)
     float backFaceFraction; // primary rays that hit a back face / all primary rays
     uint64_t rays;          // every ray traced: primary, continuation and shadow
     float nearFraction;     // primary rays that hit nearer than nearDistance / all
+    uint32_t samples = 0;   // directions traced
+    // Adaptive sampling: the estimated relative noise at the stop (see above); 0 for fixed
+    // sampling, and for a probe whose batches all agree.
+    float noise = 0.0f;
 };
 
 // The validity rule of every bake: a probe whose primary rays hit back faces more often than
@@ -82,8 +125,13 @@ public:
     // thread or call order. Sets flush-to-zero / denormals-are-zero for its duration (Embree's
     // recommended mode) and restores the caller's mode, so results do not depend on the
     // calling thread's floating-point state either.
+    //
+    // `known` (adaptive sampling only): light the caller adds to this probe from elsewhere,
+    // counted in the relative noise's denominator (it carries no noise of this integrator's).
     ProbeSample bakeProbe(glm::vec3 position, uint64_t seed, uint32_t volume_index,
-                          uint64_t probe_index) const;
+                          uint64_t probe_index, const sh::ShRgb* known = nullptr) const;
+
+    const PathSettings& settings() const { return m_settings; }
 
 private:
     struct PathStats {
@@ -91,6 +139,16 @@ private:
         bool primaryBackFace = false;
         bool primaryNear = false;
     };
+
+    // Fixed sampling: `samples` points of one Sobol sequence.
+    ProbeSample bakeFixed(glm::vec3 position, uint64_t probe_key) const;
+    // Adaptive sampling (see above); `fixed_part` is the delta lights' exact SH at the probe.
+    ProbeSample bakeAdaptive(glm::vec3 position, uint64_t probe_key, const sh::ShRgb& fixed_part,
+                             const sh::ShRgb* known) const;
+    // One direction's path and the probe's own next-event estimation, added into `sh` with
+    // sample weight 1 / n.
+    void traceSample(glm::vec3 position, glm::vec3 dir, uint64_t rng_key, uint32_t n, sh::ShRgb& sh,
+                     PathStats& stats) const;
 
     // Radiance arriving at `origin` from direction `dir` (unit), estimated with one path.
     glm::vec3 incidentRadiance(glm::vec3 origin, glm::vec3 dir, Rng& rng, PathStats& stats) const;

@@ -216,12 +216,19 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
         target * target - choice.predictedNoise * choice.predictedNoise - sh_error * sh_error,
         kTargetMinInterpolation * kTargetMinInterpolation * target * target));
 
+    // Adaptive sampling spends the directions where the noise is: a probe whose noise
+    // relative to its own irradiance meets probeNoiseTarget meets the share over the volume.
+    choice.minSamples =
+        std::clamp(std::bit_floor(std::max(1u, choice.samples / 8)), kTargetMinSamples, 4096u);
+    choice.probeNoiseTarget = noise_budget / std::sqrt(kInterpolatedVariance);
+    choice.config.path.noiseTarget = float(choice.probeNoiseTarget);
+    choice.config.path.maxSamples = kTargetMaxSamples;
     if (base.method == Method::Path) {
-        choice.config.path.samples = choice.samples;
+        choice.config.path.samples = choice.minSamples;
     } else if (base.method == Method::Vpl) {
-        choice.config.vpl.directSamples = choice.samples;
+        choice.config.vpl.directSamples = choice.minSamples;
     } else {
-        choice.config.lpv.directSamples = choice.samples;
+        choice.config.lpv.directSamples = choice.minSamples;
     }
     for (VolumeConfig& v : choice.config.volumes) {
         v.shOrder = choice.shOrder;

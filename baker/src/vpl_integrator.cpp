@@ -2,25 +2,38 @@
 
 namespace probekit::baker {
 
-PathSettings VplProbeIntegrator::directSettings(const VplConfig& config, uint32_t samples) {
+PathSettings VplProbeIntegrator::directSettings(const VplConfig& config, uint32_t samples,
+                                                float noise_target, uint32_t max_samples) {
     PathSettings settings;
     settings.samples = samples;
     settings.maxBounces = config.bounces;
     settings.nearDistance = *config.nearField;
+    settings.noiseTarget = noise_target;
+    settings.maxSamples = max_samples;
     return settings;
 }
 
 VplProbeIntegrator::VplProbeIntegrator(const Scene& scene, const RayTracer& tracer,
                                        const VplGatherer& gatherer, const VplConfig& config,
-                                       sh::Order order)
-    : m_direct(scene, tracer, directSettings(config, config.directSamples), order),
-      m_boosted(scene, tracer, directSettings(config, config.directSamples * kNearFieldBoost),
-                order),
+                                       const PathConfig& path, sh::Order order)
+    : m_direct(scene, tracer,
+               directSettings(config, config.directSamples, path.noiseTarget, path.maxSamples),
+               order),
+      m_boosted(scene, tracer,
+                directSettings(config, config.directSamples * kNearFieldBoost, 0.0f, 0), order),
       m_gatherer(gatherer), m_order(order) {}
 
 VplProbeSample VplProbeIntegrator::bakeProbe(glm::vec3 position, uint64_t seed,
                                              uint32_t volume_index, uint64_t probe_index) const {
     VplProbeSample result;
+    if (m_direct.settings().noiseTarget > 0.0f) {
+        const VplGatherResult g = m_gatherer.gather(position, m_order, sh::ShRgb{});
+        result.probe = m_direct.bakeProbe(position, seed, volume_index, probe_index, &g.sh);
+        result.probe.sh += g.sh;
+        result.probe.rays += g.rays;
+        result.cutSize = g.cutSize;
+        return result;
+    }
     result.probe = m_direct.bakeProbe(position, seed, volume_index, probe_index);
     if (result.probe.nearFraction > kNearFieldBoostFraction) {
         const uint64_t first_rays = result.probe.rays;

@@ -12,6 +12,9 @@
 //  * A probe whose near field covers more than kNearFieldBoostFraction of its directions (a
 //    corner, a probe by a wall) is traced again with kNearFieldBoost x the directions: there
 //    the near field's paths carry most of the light, and their noise would dominate.
+//    With adaptive sampling (PathConfig::noiseTarget) the boost gives way to it: the gather
+//    comes first (given no direct light, so its cut is at least as fine), and the direct part
+//    is traced until its noise relative to the whole probe meets the target.
 //
 // Thread-safe and deterministic like its parts: the result depends only on (seed, volume,
 // probe, position).
@@ -38,14 +41,16 @@ struct VplProbeSample {
 class VplProbeIntegrator {
 public:
     // `config` resolved (resolveVplConfig); `scene`, `tracer` and `gatherer` must outlive it.
+    // `path` gives adaptive sampling's noise target and cap for the direct part.
     VplProbeIntegrator(const Scene& scene, const RayTracer& tracer, const VplGatherer& gatherer,
-                       const VplConfig& config, sh::Order order);
+                       const VplConfig& config, const PathConfig& path, sh::Order order);
 
     VplProbeSample bakeProbe(glm::vec3 position, uint64_t seed, uint32_t volume_index,
                              uint64_t probe_index) const;
 
 private:
-    static PathSettings directSettings(const VplConfig& config, uint32_t samples);
+    static PathSettings directSettings(const VplConfig& config, uint32_t samples,
+                                       float noise_target, uint32_t max_samples);
 
     PathIntegrator m_direct;
     PathIntegrator m_boosted;

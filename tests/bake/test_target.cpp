@@ -1,5 +1,7 @@
 // Error-driven settings (baker::chooseSettings, --target-error) and the error measure of
 // --verify (baker::estimateError), on synthetic numbers and on the generated Cornell box.
+#include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <vector>
@@ -87,7 +89,13 @@ TEST(TargetError, BudgetSplitsTheTargetBetweenNoiseBandTwoAndInterpolation) {
                 target * target, kExact);
     ASSERT_EQ(t.config.volumes.size(), 1u);
     EXPECT_EQ(t.config.volumes[0].layout, VolumeLayout::Bricked);
-    EXPECT_EQ(t.config.path.samples, t.samples);
+    // Adaptive sampling carries the noise share: each probe to 0.6 t over the interpolation's
+    // variance reduction, from samples / 8 (a power of two, at least the floor) to the cap.
+    EXPECT_NEAR(t.probeNoiseTarget, 0.6 * target / std::sqrt(8.0 / 27.0), kExact);
+    EXPECT_EQ(t.config.path.noiseTarget, float(t.probeNoiseTarget));
+    EXPECT_EQ(t.minSamples, std::clamp(std::bit_floor(t.samples / 8), kTargetMinSamples, 4096u));
+    EXPECT_EQ(t.config.path.samples, t.minSamples);
+    EXPECT_EQ(t.config.path.maxSamples, kTargetMaxSamples);
 }
 
 TEST(TargetError, UniformSkyChoosesL1AndTheFewestSamples) {

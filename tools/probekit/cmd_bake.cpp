@@ -193,8 +193,8 @@ void printChoice(const baker::TargetChoice& c) {
     std::printf("target error %.3g (relative RMS irradiance error against a path reference)\n"
                 "  pilot: %u points x 2 estimates x %u directions, %.2f s: noise %.3g per "
                 "probe, SH band 2 carries %.3g\n"
-                "  chosen: SH order L%d (%s), %u directions per probe (interpolated noise "
-                "%.3g), bricked volumes, levels 0..%u, refine_error %.3g\n",
+                "  chosen: SH order L%d (%s), %u directions per probe uniformly (interpolated "
+                "noise %.3g), bricked volumes, levels 0..%u, refine_error %.3g\n",
                 c.target, c.pilotPoints, c.pilotSamples, c.pilotSeconds, c.pilotNoise, c.band2,
                 int(c.shOrder),
                 c.shOrder == sh::Order::L1 ? "band 2 < 0.4 x target" : "band 2 needed", c.samples,
@@ -204,6 +204,9 @@ void printChoice(const baker::TargetChoice& c) {
                     c.samplesWanted,
                     c.samples == baker::kTargetMinSamples ? "the floor" : "the cap", c.samples);
     }
+    std::printf("  adaptive sampling: each probe traced to relative noise %.3g, %u to %u "
+                "directions\n",
+                c.probeNoiseTarget, c.minSamples, baker::kTargetMaxSamples);
 }
 
 void printMethod(const BakeOptionsCli& o, const baker::Scene& scene,
@@ -321,6 +324,9 @@ nlohmann::json makeReport(const BakeOptionsCli& o, const baker::BakeConfig& conf
         {"vpls_requested", requestedVpls(config, result)},
         {"vpl_light_paths", s.vplLightPaths},
         {"vpl_mean_cut", s.vplMeanCut},
+        {"samples_mean", s.meanSamples},
+        {"samples_max", s.maxSamples},
+        {"probes_over_noise_target", s.probesOverTarget},
         {"settings", nlohmann::json::parse(result.file.metadata.parametersJson)},
         {"gpu_bytes", gpuBytes(result.file)},
         {"warnings", result.warnings},
@@ -366,6 +372,12 @@ void printSummary(const BakeOptionsCli& o, const baker::BakeConfig& config,
     if (config.method == baker::Method::Lpv) {
         std::printf("  VPLs: %llu requested, %llu placed\n", count(requestedVpls(config, result)),
                     count(s.vpls));
+    }
+    if (config.path.noiseTarget > 0.0f) {
+        std::printf("  adaptive sampling to noise %.3g: %.0f directions per probe on average, "
+                    "%u at most (cap %u); %llu valid probes stopped at the cap above the target\n",
+                    double(config.path.noiseTarget), s.meanSamples, s.maxSamples,
+                    config.path.maxSamples, count(s.probesOverTarget));
     }
     if (anyBricked(result.file)) {
         std::printf("  bricks by level %llu / %llu / %llu / %llu, %llu tested for "

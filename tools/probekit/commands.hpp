@@ -37,5 +37,6 @@ void addDiffCommand(CLI::App& app, Command& selected);
 void addSceneCommand(CLI::App& app, Command& selected);
 void addBenchRaysCommand(CLI::App& app, Command& selected);
 void addBenchCommand(CLI::App& app, Command& selected);
+void addBenchNoiseCommand(CLI::App& app, Command& selected);
 
 } // namespace probekit::cli

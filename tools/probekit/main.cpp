@@ -59,6 +59,7 @@ int main(int argc, char** argv) {
     probekit::cli::addRenderCommand(app, selected);
     probekit::cli::addDiffCommand(app, selected);
     probekit::cli::addBenchCommand(app, selected);
+    probekit::cli::addBenchNoiseCommand(app, selected);
 
     std::string command = "(command line)";
     // No exception may end the process with SIGABRT: one that escapes a command is a bug,

@@ -91,8 +91,14 @@ struct EnvironmentConfig {
 };
 
 struct PathConfig {
-    uint32_t samples = 1024; // directions per probe
-    uint32_t maxBounces = 8; // path length cap (Russian roulette ends most paths earlier)
+    uint32_t samples = 1024;  // directions per probe; the minimum with a noise target
+    uint32_t maxBounces = 64; // path length cap (Russian roulette ends most paths far earlier)
+    // Adaptive sampling (path_integrator.hpp): each probe's path-traced part is traced until
+    // its estimated relative noise is at most noiseTarget (0 = off: every probe takes the
+    // minimum), or it has taken maxSamples directions. The minimum is `samples` for method
+    // path, vpl.direct_samples and lpv.direct_samples for the others.
+    float noiseTarget = 0.0f;
+    uint32_t maxSamples = 1u << 16;
 };
 
 // Method "vpl": instant radiosity (Keller 1997). Light paths leave the lights, a virtual point
@@ -304,6 +310,13 @@ struct BakeStats {
     uint64_t vpls = 0;          // methods vpl and lpv: VPLs in the set
     uint64_t vplLightPaths = 0; // method vpl: light paths traced to place them
     double vplMeanCut = 0.0;    // method vpl: clusters gathered per probe, mean
+    // Directions per probe of the path-traced part (the whole probe for method path, the
+    // direct light for vpl and lpv): mean and most. With adaptive sampling (path.noise_target)
+    // they vary; probesOverTarget counts valid probes that stopped at path.max_samples with
+    // their estimated noise still above the target.
+    double meanSamples = 0.0;
+    uint32_t maxSamples = 0;
+    uint64_t probesOverTarget = 0;
     // Bricked volumes (summed over them):
     uint64_t bricksPerLevel[4] = {0, 0, 0, 0}; // bricks written, by level
     uint64_t nudgedProbes = 0;                 // box-face probes baked just inside the box
@@ -377,8 +390,14 @@ struct TargetChoice {
     double pilotNoise = 0.0;   // one probe's noise at pilotSamples
     double band2 = 0.0;        // RMS irradiance of SH band 2 (what L1 would lose)
     sh::Order shOrder = sh::Order::L2;
-    uint32_t samples = 0;             // chosen directions per probe (path) / direct samples
-    double samplesWanted = 0.0;       // what the noise budget asked, before the floor and cap
+    uint32_t samples = 0;       // directions per probe uniform sampling would need
+    double samplesWanted = 0.0; // what the noise budget asked, before the floor and cap
+    // Adaptive sampling carries the noise share: each probe is traced to probeNoiseTarget
+    // (the share over the interpolation's variance reduction), from minSamples directions
+    // (samples / 8 rounded down to a power of two, within kTargetMinSamples..4096) up to
+    // kTargetMaxSamples.
+    uint32_t minSamples = 0;
+    double probeNoiseTarget = 0.0;
     double predictedNoise = 0.0;      // noise after interpolation at `samples`
     double interpolationBudget = 0.0; // refine_error given to the bricked volumes
     double pilotSeconds = 0.0;
