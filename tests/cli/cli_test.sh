@@ -44,7 +44,20 @@ expect 2 "vpl.clamp: \"sphere\" is not one of none, distance, spherical" -- \
     "$pk" bake cornell.gltf -o flag.pvol --vpl-clamp sphere
 expect 2 "target_error: must be in \\(0, 1\\)" -- \
     "$pk" bake cornell.gltf -o flag.pvol --target-error 1.5
+expect 2 "--noise-target: path.noise_target: must be in \\[0, 1\\)" -- \
+    "$pk" bake cornell.gltf -o flag.pvol --noise-target 1
 check "no output after a bad flag" test ! -e flag.pvol
+# Adaptive sampling: the bake says what it spent; bench-noise measures it against fixed.
+expect 0 "adaptive sampling to noise 0.2: [0-9]+ directions per probe on average, [0-9]+ at most \\(cap 1024\\)" -- \
+    "$pk" bake cornell.gltf -o adaptive.pvol --resolution 2,2,2 --samples 16 \
+    --noise-target 0.2 --max-samples 1024
+echo '{"path": {"samples": 16, "max_samples": 1024}, "volumes": [{"resolution": [2, 2, 2]}]}' \
+    >noise.json
+expect 0 '"time_ratio":' -- "$pk" bench-noise cornell.gltf --target 0.3 --pilot-samples 64 \
+    --config noise.json
+echo '{"method": "vpl"}' >noise-vpl.json
+expect 1 "bench-noise: noise-vpl.json: bench-noise measures method path" -- \
+    "$pk" bench-noise cornell.gltf --config noise-vpl.json
 expect 0 "wrote courtyard.gltf" -- "$pk" scene courtyard -o courtyard.gltf
 expect 0 "wrote small.pvol" -- "$pk" bake cornell.gltf -o small.pvol --resolution 2,2,2 \
     --samples 16 --report report.json

@@ -242,6 +242,12 @@ void printMethod(const BakeOptionsCli& o, const baker::Scene& scene,
                     double(l.cascadeRatio), l.iterations ? *l.iterations : l.grid,
                     l.iterations ? "" : " (auto: = grid)", l.occlusion ? "on" : "off",
                     double(l.propagationWeight), double(l.fadeCells), double(l.intensity));
+    } else if (config.path.noiseTarget > 0.0f) {
+        std::printf("baking %s: method path, adaptive sampling to noise %g (%u to %u directions "
+                    "per probe), %u bounces, seed %llu\n",
+                    o.scene.c_str(), double(config.path.noiseTarget), config.path.samples,
+                    std::max(config.path.samples, config.path.maxSamples), config.path.maxBounces,
+                    seed);
     } else {
         std::printf("baking %s: method path, %u samples, %u bounces, seed %llu\n", o.scene.c_str(),
                     config.path.samples, config.path.maxBounces, seed);

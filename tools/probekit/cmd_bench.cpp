@@ -26,7 +26,8 @@ namespace {
 
 // Path bounces of the reference and of the path runs: Russian roulette ends almost every path
 // long before, and a low cap would bias both by about albedo^(cap + 1) (6% on the Cornell box
-// at the default 8), so the path rows would measure truncation instead of noise.
+// at the former default 8), so the path rows would measure truncation instead of noise. The
+// default is 64 now; this keeps a config that lowers it from skewing the sweep.
 constexpr uint32_t kPathBounces = 64;
 // The reference's seed is the config's plus this, so that no run shares its random numbers
 // (a path run with the reference's seed would reproduce its first samples and look too good).
