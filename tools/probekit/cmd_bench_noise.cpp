@@ -2,6 +2,7 @@
 // path). The noise is measured, not estimated: two bakes that differ only in their seed give
 // each probe's noise as the difference of their irradiance (README, "Adaptive sampling").
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -19,83 +20,148 @@
 namespace probekit::cli {
 namespace {
 
-// The worst-probe statistic: this quantile of the valid probes' measured noise. The maximum
-// of hundreds of two-seed measurements is set by the measurement's own spread (a probe's
-// squared noise from two bakes is about chi-square with 6 to 18 degrees of freedom), the 99th
-// percentile much less so, and it still picks the worst room of a scene.
-constexpr double kWorstQuantile = 0.99;
+// The worst-probe statistic. A probe's noise measured from a few seeds is itself noisy (its
+// square is about the true one times chi-square / dof, with 3 to 18 degrees of freedom per
+// pair of seeds: the 18 components are correlated), so the largest measurement, or a high
+// percentile, of hundreds of probes reads probes that sit exactly at the target as 1.5-2x it,
+// and it favours fixed sampling, whose few truly worst probes are outnumbered there by
+// adaptive's many probes at the target. So the worst probes are chosen with one half of the
+// seeds and measured with the other, and the halves then swap: the worst kWorstFraction of
+// the probes (at least kWorstMinimum), their RMS noise. It estimates the true noise of the
+// probes that are really the worst without the selection's bias.
+constexpr double kWorstFraction = 0.01;
+constexpr size_t kWorstMinimum = 8;
 
 struct BenchNoiseOptions {
     std::string scene;
     std::string config;
     double target = 0.05;
     uint32_t pilotSamples = 1024;
+    uint32_t seeds = 4;
     uint32_t threads = 0;
     std::string out;
 };
 
-// One configuration baked with two seeds: seconds per bake (mean) and each probe's measured
-// relative noise (one bake's: sqrt(|Ea - Eb|^2 / 2) / |(Ea + Eb) / 2| over the six axis
-// normals and three channels), NaN where either bake found the probe invalid.
+// One configuration baked with `seeds` consecutive seeds: seconds per bake (mean) and each
+// probe's measured relative noise, one bake's: sqrt(sum_c s_c^2 / sum_c m_c^2) over the 18
+// components c (six axis normals, three channels) of its irradiance, s_c^2 the sample variance
+// over the seeds and m_c the mean; NaN where any bake found the probe invalid.
 struct NoiseRun {
     double seconds = 0.0;
     double meanSamples = 0.0;
     uint32_t maxSamples = 0;
-    uint64_t overTarget = 0;
-    std::vector<double> noise;
+    uint64_t overTarget = 0;   // summed over the seeds
+    std::vector<double> noise; // from all seeds
+    // From the first and the second half of the seeds (worstNoise).
+    std::vector<double> firstHalf, secondHalf;
 };
+
+// One probe's relative noise from the seeds [begin, end) of `e` (axis irradiance per seed).
+double probeNoise(const std::vector<std::array<double, 18>>& e, size_t begin, size_t end) {
+    const double n = double(end - begin);
+    double variance = 0.0, magnitude = 0.0;
+    for (size_t c = 0; c < 18; ++c) {
+        double mean = 0.0, spread = 0.0;
+        for (size_t k = begin; k < end; ++k) {
+            mean += e[k][c] / n;
+        }
+        for (size_t k = begin; k < end; ++k) {
+            spread += (e[k][c] - mean) * (e[k][c] - mean) / (n - 1.0);
+        }
+        variance += spread;
+        magnitude += mean * mean;
+    }
+    return magnitude > 0.0 ? std::sqrt(variance / magnitude) : std::nan("");
+}
 
 constexpr glm::vec3 kAxes[6] = {{1, 0, 0},  {-1, 0, 0}, {0, 1, 0},
                                 {0, -1, 0}, {0, 0, 1},  {0, 0, -1}};
 
-Result<NoiseRun> bakeTwice(const baker::Scene& scene, baker::BakeConfig config, uint32_t threads) {
+Result<NoiseRun> bakeSeeds(const baker::Scene& scene, baker::BakeConfig config, uint32_t seeds,
+                           uint32_t threads) {
     NoiseRun run;
     std::vector<PvolFile> files;
     baker::BakeOptions options;
     options.threads = threads;
-    for (int i = 0; i < 2; ++i) {
+    for (uint32_t i = 0; i < seeds; ++i) {
         Result<baker::BakeResult> r = baker::bake(scene, config, options);
         if (!r) {
             return r.error();
         }
-        run.seconds += 0.5 * r.value().stats.seconds;
-        run.meanSamples += 0.5 * r.value().stats.meanSamples;
+        run.seconds += r.value().stats.seconds / seeds;
+        run.meanSamples += r.value().stats.meanSamples / seeds;
         run.maxSamples = std::max(run.maxSamples, r.value().stats.maxSamples);
         run.overTarget += r.value().stats.probesOverTarget;
         files.push_back(std::move(r.value().file));
         config.seed += 1;
     }
     for (size_t v = 0; v < files[0].volumes.size(); ++v) {
-        const Volume& a = files[0].volumes[v];
-        const Volume& b = files[1].volumes[v];
-        for (size_t p = 0; p < a.probeCount(); ++p) {
-            if (a.validity[p] != kProbeValid || b.validity[p] != kProbeValid) {
+        for (size_t p = 0; p < files[0].volumes[v].probeCount(); ++p) {
+            std::vector<std::array<double, 18>> e;
+            for (const PvolFile& f : files) {
+                const Volume& volume = f.volumes[v];
+                if (volume.validity[p] != kProbeValid) {
+                    break;
+                }
+                const sh::ShRgb probe = volume.probe(p);
+                std::array<double, 18>& x = e.emplace_back();
+                for (size_t a = 0; a < 6; ++a) {
+                    const glm::vec3 irradiance =
+                        sh::irradiance(probe, volume.desc.shOrder, kAxes[a]);
+                    for (int c = 0; c < 3; ++c) {
+                        x[3 * a + size_t(c)] = double(irradiance[c]);
+                    }
+                }
+            }
+            if (e.size() != files.size()) {
                 run.noise.push_back(std::nan(""));
+                run.firstHalf.push_back(std::nan(""));
+                run.secondHalf.push_back(std::nan(""));
                 continue;
             }
-            const sh::ShRgb sa = a.probe(p), sb = b.probe(p);
-            double diff2 = 0.0, mean2 = 0.0;
-            for (const glm::vec3& n : kAxes) {
-                const glm::vec3 ea = sh::irradiance(sa, a.desc.shOrder, n);
-                const glm::vec3 eb = sh::irradiance(sb, b.desc.shOrder, n);
-                const glm::vec3 d = ea - eb, m = 0.5f * (ea + eb);
-                diff2 += double(glm::dot(d, d));
-                mean2 += double(glm::dot(m, m));
-            }
-            run.noise.push_back(mean2 > 0.0 ? std::sqrt(0.5 * diff2 / mean2) : std::nan(""));
+            run.noise.push_back(probeNoise(e, 0, seeds));
+            run.firstHalf.push_back(probeNoise(e, 0, seeds / 2));
+            run.secondHalf.push_back(probeNoise(e, seeds / 2, seeds));
         }
     }
     return run;
 }
 
-double quantile(std::vector<double> values, double q) {
-    std::erase_if(values, [](double x) { return std::isnan(x); });
-    if (values.empty()) {
+double maximum(const std::vector<double>& values) {
+    double m = 0.0;
+    for (double x : values) {
+        m = std::isnan(x) ? m : std::max(m, x);
+    }
+    return m;
+}
+
+// RMS noise, measured by `measure`, of the worst probes as `select` ranks them.
+double worstBy(const std::vector<double>& select, const std::vector<double>& measure) {
+    std::vector<size_t> order;
+    for (size_t i = 0; i < select.size(); ++i) {
+        if (!std::isnan(select[i]) && !std::isnan(measure[i])) {
+            order.push_back(i);
+        }
+    }
+    if (order.empty()) {
         return std::nan("");
     }
-    const size_t k = std::min(values.size() - 1, size_t(std::ceil(q * double(values.size())) - 1));
-    std::nth_element(values.begin(), values.begin() + std::ptrdiff_t(k), values.end());
-    return values[k];
+    const size_t count =
+        std::min(order.size(),
+                 std::max(kWorstMinimum, size_t(std::ceil(kWorstFraction * double(order.size())))));
+    std::partial_sort(order.begin(), order.begin() + std::ptrdiff_t(count), order.end(),
+                      [&](size_t a, size_t b) { return select[a] > select[b]; });
+    double sum = 0.0;
+    for (size_t k = 0; k < count; ++k) {
+        sum += measure[order[k]] * measure[order[k]];
+    }
+    return std::sqrt(sum / double(count));
+}
+
+double worstNoise(const NoiseRun& run) {
+    const double a = worstBy(run.firstHalf, run.secondHalf);
+    const double b = worstBy(run.secondHalf, run.firstHalf);
+    return std::sqrt(0.5 * (a * a + b * b));
 }
 
 double rms(const std::vector<double>& values) {
@@ -151,11 +217,11 @@ int runBenchNoise(const BenchNoiseOptions& o) {
     adaptive.path.noiseTarget = float(o.target);
     std::fprintf(stderr, "bench-noise: adaptive, noise target %g, %u to %u directions\n", o.target,
                  adaptive.path.samples, adaptive.path.maxSamples);
-    Result<NoiseRun> ad = bakeTwice(scene.value(), adaptive, o.threads);
+    Result<NoiseRun> ad = bakeSeeds(scene.value(), adaptive, o.seeds, o.threads);
     if (!ad) {
         return fail(ad.error().message);
     }
-    const double ad_worst = quantile(ad.value().noise, kWorstQuantile);
+    const double ad_worst = worstNoise(ad.value());
 
     // 2. Fixed sampling at the pilot count: noise falls as 1 / sqrt(samples) probe by probe,
     // so the count that matches adaptive's worst probe follows from it.
@@ -163,42 +229,46 @@ int runBenchNoise(const BenchNoiseOptions& o) {
     fixed.path.noiseTarget = 0.0f;
     fixed.path.samples = o.pilotSamples;
     std::fprintf(stderr, "bench-noise: fixed pilot, %u directions\n", o.pilotSamples);
-    Result<NoiseRun> pilot = bakeTwice(scene.value(), fixed, o.threads);
+    Result<NoiseRun> pilot = bakeSeeds(scene.value(), fixed, o.seeds, o.threads);
     if (!pilot) {
         return fail(pilot.error().message);
     }
-    const double pilot_worst = quantile(pilot.value().noise, kWorstQuantile);
+    const double pilot_worst = worstNoise(pilot.value());
     const double ratio = pilot_worst / ad_worst;
     const double wanted = std::ceil(double(o.pilotSamples) * ratio * ratio / 64.0) * 64.0;
     fixed.path.samples = uint32_t(std::clamp(wanted, 64.0, double(1u << 24)));
 
     // 3. Fixed sampling at that count, measured.
     std::fprintf(stderr, "bench-noise: fixed, %u directions\n", fixed.path.samples);
-    Result<NoiseRun> fx = bakeTwice(scene.value(), fixed, o.threads);
+    Result<NoiseRun> fx = bakeSeeds(scene.value(), fixed, o.seeds, o.threads);
     if (!fx) {
         return fail(fx.error().message);
     }
-    const double fx_worst = quantile(fx.value().noise, kWorstQuantile);
+    const double fx_worst = worstNoise(fx.value());
 
     const nlohmann::json line = {
         {"scene", o.scene},
         {"noise_target", o.target},
-        {"worst_quantile", kWorstQuantile},
+        {"worst_fraction", kWorstFraction},
         {"adaptive_seconds", ad.value().seconds},
         {"adaptive_samples_mean", ad.value().meanSamples},
         {"adaptive_samples_max", ad.value().maxSamples},
-        {"adaptive_probes_over_target", ad.value().overTarget / 2},
+        {"seeds", o.seeds},
+        {"adaptive_probes_over_target", double(ad.value().overTarget) / o.seeds},
         {"adaptive_worst_noise", ad_worst},
-        {"adaptive_max_noise", quantile(ad.value().noise, 1.0)},
+        {"adaptive_max_noise", maximum(ad.value().noise)},
         {"adaptive_rms_noise", rms(ad.value().noise)},
         {"fixed_pilot_samples", o.pilotSamples},
         {"fixed_pilot_worst_noise", pilot_worst},
         {"fixed_samples", fixed.path.samples},
         {"fixed_seconds", fx.value().seconds},
         {"fixed_worst_noise", fx_worst},
-        {"fixed_max_noise", quantile(fx.value().noise, 1.0)},
+        {"fixed_max_noise", maximum(fx.value().noise)},
         {"fixed_rms_noise", rms(fx.value().noise)},
         {"time_ratio", ad.value().seconds / fx.value().seconds},
+        // Fixed sampling's time scaled to adaptive's worst noise exactly (noise ~ 1/sqrt(time)).
+        {"time_ratio_matched",
+         ad.value().seconds / (fx.value().seconds * (fx_worst / ad_worst) * (fx_worst / ad_worst))},
         {"worst_noise_over_target", ad_worst / o.target},
     };
     std::printf("%s\n", line.dump().c_str());
@@ -217,7 +287,7 @@ void addBenchNoiseCommand(CLI::App& app, Command& selected) {
     CLI::App* cmd = app.add_subcommand(
         "bench-noise",
         "Seconds to a worst-probe noise, adaptive sampling (path.noise_target) against fixed: "
-        "noise measured between two seeds; one JSON line");
+        "noise measured between seeds; one JSON line");
     cmd->add_option("SCENE", o->scene, "glTF 2.0 scene (.gltf or .glb)")->required();
     cmd->add_option("--config", o->config,
                     "bake config JSON (method path): volumes, environment, path.samples as "
@@ -228,6 +298,11 @@ void addBenchNoiseCommand(CLI::App& app, Command& selected) {
     cmd->add_option("--pilot-samples", o->pilotSamples,
                     "fixed sampling's pilot: directions per probe")
         ->check(CLI::Range(64u, 1u << 20))
+        ->capture_default_str();
+    cmd->add_option("--seeds", o->seeds,
+                    "bakes per configuration (at least 4: the worst probes are chosen with half of "
+                    "them and measured with the other half)")
+        ->check(CLI::Range(4u, 64u))
         ->capture_default_str();
     cmd->add_option("--threads", o->threads, "worker threads (0 = all cores)");
     cmd->add_option("--out", o->out, "also write the JSON line to this file");
