@@ -543,6 +543,7 @@ PathSettings pathSettings(const BakeConfig& config, const MethodState& method) {
     settings.maxBounces = config.path.maxBounces;
     settings.noiseTarget = config.path.noiseTarget;
     settings.maxSamples = config.path.maxSamples;
+    settings.noiseFloor = config.path.noiseFloor;
     if (method.lpvLights) {
         settings.samples =
             config.lpv.direct == LpvDirect::Traced ? config.lpv.directSamples : kLpvValiditySamples;

@@ -522,6 +522,9 @@ const std::vector<Field<PathConfig>>& pathFields() {
               "--noise-target"),
         field("max_samples", &PathConfig::maxSamples, whole(1, 1u << 24), "",
               "adaptive sampling: most directions per probe", "--max-samples"),
+        field("noise_floor", &PathConfig::noiseFloor, nonNegative(), "W/m^2",
+              "adaptive sampling: a probe darker than this (RMS irradiance over the axis normals) "
+              "has its noise measured against it (--target-error sets it)"),
     };
     return fields;
 }

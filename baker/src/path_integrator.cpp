@@ -173,6 +173,8 @@ ProbeSample PathIntegrator::bakeAdaptive(glm::vec3 position, uint64_t probe_key,
             const double e = mean[c] + outside_axis[c];
             magnitude += e * e;
         }
+        magnitude = std::max(magnitude, double(kComponents) * double(m_settings.noiseFloor) *
+                                            double(m_settings.noiseFloor));
         noise = magnitude > 0.0  ? std::sqrt(variance / magnitude)
                 : variance > 0.0 ? std::numeric_limits<double>::infinity()
                                  : 0.0;

@@ -39,11 +39,11 @@
 //     noise^2 = sum_c s_c^2 / K  /  sum_c (mean_c + known_c)^2
 // with s_c^2 the unbiased sample variance of component c over the K batches and known_c the
 // exact or separately estimated light the caller adds (delta lights at the probe, a VPL gather,
-// LPV cascades). The probe stops once noise <= noiseTarget or K reaches the cap; otherwise it
-// traces up to the number of batches the estimate predicts, at most twice the present number,
-// before it checks again. The rule reads only the probe's own samples, so the result does not
-// depend on threads or order. A probe that is already invalid after the minimum (inside
-// geometry, probeValidity) stops there: its value is discarded.
+// LPV cascades); the denominator is at least 18 noiseFloor^2. The probe stops once noise <=
+// noiseTarget or K reaches the cap; otherwise it traces up to the number of batches the estimate
+// predicts, at most twice the present number, before it checks again. The rule reads only the
+// probe's own samples, so the result does not depend on threads or order. A probe that is already
+// invalid after the minimum (inside geometry, probeValidity) stops there: its value is discarded.
 //
 // Punctual and directional lights are deltas: no sampled direction can hit them, so their
 // direct light at the probe is added analytically, projectDelta(dir to light,
@@ -86,6 +86,8 @@ struct PathSettings {
     // may take (raised to the minimum if below it).
     float noiseTarget = 0.0f;
     uint32_t maxSamples = 1u << 16;
+    // Irradiance (W/m^2, RMS over the 18 components) the noise is measured against at least.
+    float noiseFloor = 0.0f;
 };
 
 // The batch size and the minimum and maximum batch counts adaptive sampling uses for `settings`.

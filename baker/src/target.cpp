@@ -222,6 +222,10 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
         std::clamp(std::bit_floor(std::max(1u, choice.samples / 8)), kTargetMinSamples, 4096u);
     choice.probeNoiseTarget = noise_budget / std::sqrt(kInterpolatedVariance);
     choice.config.path.noiseTarget = float(choice.probeNoiseTarget);
+    // The error is relative to the volume's RMS irradiance, not each probe's: a dark probe's
+    // noise is held to the pilot's RMS irradiance, not chased to a fraction of its own.
+    choice.noiseFloor = std::sqrt(reference2 / (double(choice.pilotPoints) * 18.0));
+    choice.config.path.noiseFloor = float(choice.noiseFloor);
     choice.config.path.maxSamples = kTargetMaxSamples;
     if (base.method == Method::Path) {
         choice.config.path.samples = choice.minSamples;

@@ -3,24 +3,25 @@
 namespace probekit::baker {
 
 PathSettings VplProbeIntegrator::directSettings(const VplConfig& config, uint32_t samples,
-                                                float noise_target, uint32_t max_samples) {
+                                                const PathConfig* adaptive) {
     PathSettings settings;
     settings.samples = samples;
     settings.maxBounces = config.bounces;
     settings.nearDistance = *config.nearField;
-    settings.noiseTarget = noise_target;
-    settings.maxSamples = max_samples;
+    if (adaptive != nullptr) {
+        settings.noiseTarget = adaptive->noiseTarget;
+        settings.maxSamples = adaptive->maxSamples;
+        settings.noiseFloor = adaptive->noiseFloor;
+    }
     return settings;
 }
 
 VplProbeIntegrator::VplProbeIntegrator(const Scene& scene, const RayTracer& tracer,
                                        const VplGatherer& gatherer, const VplConfig& config,
                                        const PathConfig& path, sh::Order order)
-    : m_direct(scene, tracer,
-               directSettings(config, config.directSamples, path.noiseTarget, path.maxSamples),
-               order),
+    : m_direct(scene, tracer, directSettings(config, config.directSamples, &path), order),
       m_boosted(scene, tracer,
-                directSettings(config, config.directSamples * kNearFieldBoost, 0.0f, 0), order),
+                directSettings(config, config.directSamples * kNearFieldBoost, nullptr), order),
       m_gatherer(gatherer), m_order(order) {}
 
 VplProbeSample VplProbeIntegrator::bakeProbe(glm::vec3 position, uint64_t seed,

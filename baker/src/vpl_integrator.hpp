@@ -49,8 +49,9 @@ public:
                              uint64_t probe_index) const;
 
 private:
+    // The direct part's settings; `adaptive` (null: fixed sampling) gives adaptive sampling's.
     static PathSettings directSettings(const VplConfig& config, uint32_t samples,
-                                       float noise_target, uint32_t max_samples);
+                                       const PathConfig* adaptive);
 
     PathIntegrator m_direct;
     PathIntegrator m_boosted;

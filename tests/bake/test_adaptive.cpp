@@ -18,10 +18,11 @@ namespace {
 constexpr glm::vec3 kLitPoint(-2.0f, 1.2f, 0.5f);
 constexpr glm::vec3 kUnlitPoint(2.0f, 1.2f, -1.0f);
 
-BakeStats bakeAt(const Scene& scene, glm::vec3 point, float noise_target) {
+BakeStats bakeAt(const Scene& scene, glm::vec3 point, float noise_target, float floor = 0.0f) {
     BakeConfig c = test::probesAt({point}, 0.05f);
     c.path.samples = 256;
     c.path.noiseTarget = noise_target;
+    c.path.noiseFloor = floor;
     Result<BakeResult> r = bake(scene, c);
     EXPECT_TRUE(r.ok()) << r.error().message;
     return r.ok() ? r.value().stats : BakeStats{};
@@ -40,6 +41,12 @@ TEST(AdaptiveBake, UnlitRoomTakesMoreDirectionsThanTheLitRoom) {
     EXPECT_EQ(unlit.probesOverTarget, 0u); // under the default cap
     EXPECT_EQ(bakeAt(scene, kUnlitPoint, 0.0f).meanSamples, 256.0);
     EXPECT_EQ(bakeAt(scene, kLitPoint, 0.0f).meanSamples, 256.0);
+    // A noise floor of 1 W/m^2 (the lit probe's RMS irradiance over the axis normals is about
+    // 8, the unlit one's well under 1) holds the unlit probe to a tenth of the floor instead of
+    // a tenth of its own irradiance: it stops far sooner.
+    const BakeStats floored = bakeAt(scene, kUnlitPoint, 0.1f, 1.0f);
+    std::printf("unlit room with a 1 W/m^2 floor: %.0f directions\n", floored.meanSamples);
+    EXPECT_LE(floored.meanSamples, unlit.meanSamples / 8.0);
 }
 
 TEST(AdaptiveBake, BitIdenticalForOneAndTwoThreads) {

@@ -96,6 +96,9 @@ TEST(TargetError, BudgetSplitsTheTargetBetweenNoiseBandTwoAndInterpolation) {
     EXPECT_EQ(t.minSamples, std::clamp(std::bit_floor(t.samples / 8), kTargetMinSamples, 4096u));
     EXPECT_EQ(t.config.path.samples, t.minSamples);
     EXPECT_EQ(t.config.path.maxSamples, kTargetMaxSamples);
+    // Dark probes are held to the pilot's RMS irradiance (the box is lit: well above 0).
+    EXPECT_GT(t.noiseFloor, 0.01);
+    EXPECT_EQ(t.config.path.noiseFloor, float(t.noiseFloor));
 }
 
 TEST(TargetError, UniformSkyChoosesL1AndTheFewestSamples) {

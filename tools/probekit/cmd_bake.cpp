@@ -204,9 +204,9 @@ void printChoice(const baker::TargetChoice& c) {
                     c.samplesWanted,
                     c.samples == baker::kTargetMinSamples ? "the floor" : "the cap", c.samples);
     }
-    std::printf("  adaptive sampling: each probe traced to relative noise %.3g, %u to %u "
-                "directions\n",
-                c.probeNoiseTarget, c.minSamples, baker::kTargetMaxSamples);
+    std::printf("  adaptive sampling: each probe traced to noise %.3g of its irradiance (of %.3g "
+                "W/m^2, the pilot's RMS, where darker), %u to %u directions\n",
+                c.probeNoiseTarget, c.noiseFloor, c.minSamples, baker::kTargetMaxSamples);
 }
 
 void printMethod(const BakeOptionsCli& o, const baker::Scene& scene,

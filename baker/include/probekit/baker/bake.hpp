@@ -99,6 +99,11 @@ struct PathConfig {
     // path, vpl.direct_samples and lpv.direct_samples for the others.
     float noiseTarget = 0.0f;
     uint32_t maxSamples = 1u << 16;
+    // W/m^2, RMS over the six axis normals and three channels: a probe darker than this has its
+    // noise measured against this instead of its own irradiance, so that dark probes are not
+    // chased to a relative noise the bake's overall error does not need (--target-error sets
+    // it to the pilot's RMS irradiance). 0 = every probe against its own.
+    float noiseFloor = 0.0f;
 };
 
 // Method "vpl": instant radiosity (Keller 1997). Light paths leave the lights, a virtual point
@@ -398,6 +403,7 @@ struct TargetChoice {
     // kTargetMaxSamples.
     uint32_t minSamples = 0;
     double probeNoiseTarget = 0.0;
+    double noiseFloor = 0.0;          // the pilot's RMS irradiance (path.noise_floor), W/m^2
     double predictedNoise = 0.0;      // noise after interpolation at `samples`
     double interpolationBudget = 0.0; // refine_error given to the bricked volumes
     double pilotSeconds = 0.0;
