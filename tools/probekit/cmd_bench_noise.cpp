@@ -37,7 +37,7 @@ struct BenchNoiseOptions {
     std::string config;
     double target = 0.05;
     uint32_t pilotSamples = 1024;
-    uint32_t seeds = 4;
+    uint32_t seeds = 8;
     uint32_t threads = 0;
     std::string out;
 };
