@@ -1,0 +1,65 @@
+// probekit::runtime — the dynamic GI's geometry volume, CPU twin (docs/dynamic-gi-plan.md).
+//
+// A cascade is a cube of `cells` cells of side `cellSize` from `origin`. Its geometry volume is
+// offset by half a cell, as the offline LPV's (baker/src/lpv.hpp, "Geometry volume"): cells + 1
+// per axis, centred on the LPV cell corners, so every face between two LPV cells lies on a plane
+// of geometry-cell centres. Each geometry cell holds, summed over the surface inside it:
+//  * blocking: bands 0 and 2 of A (n.w)^2 / s^2 (6 numbers: Y00 and the five band-2
+//    coefficients; band 1 is zero since the function is even), the probability that light
+//    crossing the cell along w meets the surface, as offline;
+//  * area (m^2) and albedo x area per channel, for injection.
+// Triangles are sampled by sampleTriangleInBox (formats/triangle_sampling.hpp) with sub-triangle
+// edges at most half a cell. Every sample's contribution is rounded to fixed point
+// (kGiFixedScale) before it is summed, so the sums do not depend on the order triangles are
+// visited: the compute shader adds the same integers with atomics and gets the same bytes.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "probekit/runtime/renderer.hpp"
+
+namespace probekit::runtime {
+
+// Fixed-point unit of every geometry sum: 2^-16 (of blocking, m^2 and albedo m^2).
+constexpr float kGiFixedScale = 65536.0f;
+
+struct GiCascadeLayout {
+    glm::vec3 origin{0.0f}; // world min corner, metres
+    float cellSize = 0.25f; // metres
+    int cells = 32;         // per axis
+
+    int geometryCells() const { return cells + 1; }
+    size_t geometryIndex(glm::ivec3 g) const {
+        const auto n = size_t(geometryCells());
+        return size_t(g.x) + n * (size_t(g.y) + n * size_t(g.z));
+    }
+};
+
+struct GiGeometryCell {
+    std::array<int32_t, 6> blocking{}; // fixed point: Y00 then Y2-2..Y22 coefficients
+    int32_t area = 0;                  // fixed point, m^2
+    std::array<int32_t, 3> albedoArea{};
+    friend bool operator==(const GiGeometryCell&, const GiGeometryCell&) = default;
+};
+
+// The geometry volume of `layout` from indexed triangles (every three indices one triangle;
+// out-of-range indices are the caller's error and are skipped).
+std::vector<GiGeometryCell> buildGiGeometry(const GiCascadeLayout& layout,
+                                            std::span<const RenderVertex> vertices,
+                                            std::span<const uint32_t> indices);
+
+// The probability, in [0, 1], that light crossing the face between LPV cell `cell` and its
+// neighbour along axis direction `d` (0..5: +x, -x, +y, -y, +z, -z) in direction `w` meets a
+// surface: giFacePotential clamped. The potential is the blocking evaluated at w, averaged over
+// the four geometry cells at the face's corners (bilinear at its centre), unclamped.
+float giFacePotential(const GiCascadeLayout& layout, const std::vector<GiGeometryCell>& geometry,
+                      glm::ivec3 cell, int d, glm::vec3 w);
+float giFaceBlocking(const GiCascadeLayout& layout, const std::vector<GiGeometryCell>& geometry,
+                     glm::ivec3 cell, int d, glm::vec3 w);
+
+} // namespace probekit::runtime
