@@ -19,8 +19,9 @@ constexpr std::array<int, 6> kBlockingCoefficients = {0, 4, 5, 6, 7, 8};
 constexpr float kLambda0 = 4.0f / 3.0f * sh::kPi;
 constexpr float kLambda2 = 8.0f / 15.0f * sh::kPi;
 
+// Rounded in float as the shader does (floor(v x 2^16 + 0.5)).
 int32_t fixedPoint(float value) {
-    return int32_t(std::lround(double(value) * double(kGiFixedScale)));
+    return int32_t(std::floor(value * kGiFixedScale + 0.5f));
 }
 
 constexpr std::array<glm::ivec3, 6> kDirections = {glm::ivec3(1, 0, 0), glm::ivec3(-1, 0, 0),
@@ -28,6 +29,21 @@ constexpr std::array<glm::ivec3, 6> kDirections = {glm::ivec3(1, 0, 0), glm::ive
                                                    glm::ivec3(0, 0, 1), glm::ivec3(0, 0, -1)};
 
 } // namespace
+
+glm::vec3 giCanonicalNormal(glm::vec3 n) {
+    const glm::vec3 a = glm::abs(n);
+    const int axis = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
+    return n[axis] < 0.0f ? -n : n;
+}
+
+float giCellPotential(const GiGeometryCell& cell, glm::vec3 w) {
+    const sh::Coeffs y = sh::evalBasis(w);
+    float potential = 0.0f;
+    for (size_t k = 0; k < kBlockingCoefficients.size(); ++k) {
+        potential += float(cell.blocking[k]) / kGiFixedScale * y[kBlockingCoefficients[k]];
+    }
+    return potential;
+}
 
 std::vector<GiGeometryCell> buildGiGeometry(const GiCascadeLayout& layout,
                                             std::span<const RenderVertex> vertices,
@@ -38,6 +54,7 @@ std::vector<GiGeometryCell> buildGiGeometry(const GiCascadeLayout& layout,
     const grid::Aabb box{layout.origin - 0.5f * s,
                          layout.origin + (float(layout.cells) + 0.5f) * s};
     const float per_area = 1.0f / (s * s);
+    const float inv_s = 1.0f / s;
     for (size_t t = 0; t + 2 < indices.size(); t += 3) {
         if (indices[t] >= vertices.size() || indices[t + 1] >= vertices.size() ||
             indices[t + 2] >= vertices.size()) {
@@ -51,6 +68,7 @@ std::vector<GiGeometryCell> buildGiGeometry(const GiCascadeLayout& layout,
         if (!(length > 0.0f)) {
             continue;
         }
+        const glm::vec3 normal = giCanonicalNormal(cross / length);
         const sh::Coeffs y = sh::evalBasis(cross / length);
         std::array<float, 6> per_unit_area{};
         for (size_t k = 0; k < kBlockingCoefficients.size(); ++k) {
@@ -68,16 +86,20 @@ std::vector<GiGeometryCell> buildGiGeometry(const GiCascadeLayout& layout,
                 for (size_t k = 0; k < per_unit_area.size(); ++k) {
                     cell.blocking[k] += fixedPoint(area * per_unit_area[k]);
                 }
-                cell.area += fixedPoint(area);
+                const float a = area * per_area;
+                const glm::vec3 offset = (p - layout.origin) * inv_s - glm::vec3(g);
+                cell.area += fixedPoint(a);
                 for (int ch = 0; ch < 3; ++ch) {
-                    cell.albedoArea[size_t(ch)] += fixedPoint(area * albedo[ch]);
+                    cell.albedoArea[size_t(ch)] += fixedPoint(a * albedo[ch]);
+                    cell.normalArea[size_t(ch)] += fixedPoint(a * normal[ch]);
+                    cell.offsetArea[size_t(ch)] += fixedPoint(a * offset[ch]);
                 }
             });
     }
     return cells;
 }
 
-float giFacePotential(const GiCascadeLayout& layout, const std::vector<GiGeometryCell>& geometry,
+float giFacePotential(const GiCascadeLayout& layout, std::span<const GiGeometryCell> geometry,
                       glm::ivec3 cell, int d, glm::vec3 w) {
     const int axis = d / 2;
     glm::ivec3 g0 = cell;
@@ -102,7 +124,7 @@ float giFacePotential(const GiCascadeLayout& layout, const std::vector<GiGeometr
     return potential;
 }
 
-float giFaceBlocking(const GiCascadeLayout& layout, const std::vector<GiGeometryCell>& geometry,
+float giFaceBlocking(const GiCascadeLayout& layout, std::span<const GiGeometryCell> geometry,
                      glm::ivec3 cell, int d, glm::vec3 w) {
     return std::clamp(giFacePotential(layout, geometry, cell, d, w), 0.0f, 1.0f);
 }

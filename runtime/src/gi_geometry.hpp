@@ -7,7 +7,10 @@
 //  * blocking: bands 0 and 2 of A (n.w)^2 / s^2 (6 numbers: Y00 and the five band-2
 //    coefficients; band 1 is zero since the function is even), the probability that light
 //    crossing the cell along w meets the surface, as offline;
-//  * area (m^2) and albedo x area per channel, for injection.
+//  * for injection (gi_twin.hpp): area, albedo x area per channel, normal x area (each
+//    triangle's normal turned to its canonical side: largest-magnitude component positive, the
+//    first such axis on a tie) and offset x area (the sample's position minus the geometry
+//    cell's centre, in cells), all in units of the cell's face area s^2.
 // Triangles are sampled by sampleTriangleInBox (formats/triangle_sampling.hpp) with sub-triangle
 // edges at most half a cell. Every sample's contribution is rounded to fixed point
 // (kGiFixedScale) before it is summed, so the sums do not depend on the order triangles are
@@ -25,7 +28,8 @@
 
 namespace probekit::runtime {
 
-// Fixed-point unit of every geometry sum: 2^-16 (of blocking, m^2 and albedo m^2).
+// Fixed-point unit of every geometry sum: 2^-16 (areas in units of s^2, so a cascade's precision
+// does not depend on its cell size).
 constexpr float kGiFixedScale = 65536.0f;
 
 struct GiCascadeLayout {
@@ -40,12 +44,19 @@ struct GiCascadeLayout {
     }
 };
 
+// 16 int32 per cell; the GPU buffer holds the same struct (std430, no padding).
 struct GiGeometryCell {
     std::array<int32_t, 6> blocking{}; // fixed point: Y00 then Y2-2..Y22 coefficients
-    int32_t area = 0;                  // fixed point, m^2
+    int32_t area = 0;                  // fixed point, s^2
     std::array<int32_t, 3> albedoArea{};
+    std::array<int32_t, 3> normalArea{};
+    std::array<int32_t, 3> offsetArea{}; // offset in cells x area in s^2
     friend bool operator==(const GiGeometryCell&, const GiGeometryCell&) = default;
 };
+static_assert(sizeof(GiGeometryCell) == 64);
+
+// The canonical side of a unit normal (above): n or -n.
+glm::vec3 giCanonicalNormal(glm::vec3 n);
 
 // The geometry volume of `layout` from indexed triangles (every three indices one triangle;
 // out-of-range indices are the caller's error and are skipped).
@@ -57,9 +68,11 @@ std::vector<GiGeometryCell> buildGiGeometry(const GiCascadeLayout& layout,
 // neighbour along axis direction `d` (0..5: +x, -x, +y, -y, +z, -z) in direction `w` meets a
 // surface: giFacePotential clamped. The potential is the blocking evaluated at w, averaged over
 // the four geometry cells at the face's corners (bilinear at its centre), unclamped.
-float giFacePotential(const GiCascadeLayout& layout, const std::vector<GiGeometryCell>& geometry,
+float giFacePotential(const GiCascadeLayout& layout, std::span<const GiGeometryCell> geometry,
                       glm::ivec3 cell, int d, glm::vec3 w);
-float giFaceBlocking(const GiCascadeLayout& layout, const std::vector<GiGeometryCell>& geometry,
+// Bands 0 and 2 of one geometry cell's blocking evaluated at unit w (unclamped).
+float giCellPotential(const GiGeometryCell& cell, glm::vec3 w);
+float giFaceBlocking(const GiCascadeLayout& layout, std::span<const GiGeometryCell> geometry,
                      glm::ivec3 cell, int d, glm::vec3 w);
 
 } // namespace probekit::runtime

@@ -40,19 +40,21 @@ TEST(GiGeometry, AreaAndAlbedoAreConserved) {
             glm::vec3(0.5f, 0.25f, 0.75f));
     const GiCascadeLayout layout = unitLayout();
     const auto cells = buildGiGeometry(layout, v, idx);
+    // Sums are in units of the cell's face area.
+    const double face = double(layout.cellSize) * double(layout.cellSize);
     double area = 0.0;
     glm::dvec3 albedo(0.0);
     size_t samples_bound = 0;
     for (const GiGeometryCell& c : cells) {
-        area += double(c.area) / kGiFixedScale;
+        area += face * double(c.area) / kGiFixedScale;
         for (int ch = 0; ch < 3; ++ch) {
-            albedo[ch] += double(c.albedoArea[size_t(ch)]) / kGiFixedScale;
+            albedo[ch] += face * double(c.albedoArea[size_t(ch)]) / kGiFixedScale;
         }
         samples_bound += c.area != 0 ? 1 : 0;
     }
     // Each sample rounds by at most half a unit; a 4 m^2 quad cut into sub-triangles of edge
     // <= 0.125 m has at most 2 x (2 / 0.125 + 1)^2 = 578 samples per triangle.
-    const double rounding = 2.0 * 578.0 * 0.5 / kGiFixedScale;
+    const double rounding = face * 2.0 * 578.0 * 0.5 / kGiFixedScale;
     EXPECT_NEAR(area, 4.0, rounding);
     EXPECT_NEAR(albedo.x, 2.0, rounding);
     EXPECT_NEAR(albedo.y, 1.0, rounding);
