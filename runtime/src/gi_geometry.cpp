@@ -69,6 +69,7 @@ std::vector<GiGeometryCell> buildGiGeometry(const GiCascadeLayout& layout,
             continue;
         }
         const glm::vec3 normal = giCanonicalNormal(cross / length);
+        const bool front = normal == cross / length;
         const sh::Coeffs y = sh::evalBasis(cross / length);
         std::array<float, 6> per_unit_area{};
         for (size_t k = 0; k < kBlockingCoefficients.size(); ++k) {
@@ -89,6 +90,9 @@ std::vector<GiGeometryCell> buildGiGeometry(const GiCascadeLayout& layout,
                 const float a = area * per_area;
                 const glm::vec3 offset = (p - layout.origin) * inv_s - glm::vec3(g);
                 cell.area += fixedPoint(a);
+                if (front) {
+                    cell.frontArea += fixedPoint(a);
+                }
                 for (int ch = 0; ch < 3; ++ch) {
                     cell.albedoArea[size_t(ch)] += fixedPoint(a * albedo[ch]);
                     cell.normalArea[size_t(ch)] += fixedPoint(a * normal[ch]);

@@ -10,7 +10,10 @@
 //  * for injection (gi_twin.hpp): area, albedo x area per channel, normal x area (each
 //    triangle's normal turned to its canonical side: largest-magnitude component positive, the
 //    first such axis on a tie) and offset x area (the sample's position minus the geometry
-//    cell's centre, in cells), all in units of the cell's face area s^2.
+//    cell's centre, in cells), all in units of the cell's face area s^2; and the area of the
+//    triangles that already faced their canonical side (frontArea), so that a closed thin box
+//    (a wall, a slab: two faces of opposite normals in one cell) is told from a single
+//    two-sided quad: each side of the cell's surface reflects with max(front, area - front).
 // Triangles are sampled by sampleTriangleInBox (formats/triangle_sampling.hpp) with sub-triangle
 // edges at most half a cell. Every sample's contribution is rounded to fixed point
 // (kGiFixedScale) before it is summed, so the sums do not depend on the order triangles are
@@ -44,16 +47,17 @@ struct GiCascadeLayout {
     }
 };
 
-// 16 int32 per cell; the GPU buffer holds the same struct (std430, no padding).
+// 17 int32 per cell; the GPU buffer holds the same struct (std430, no padding).
 struct GiGeometryCell {
     std::array<int32_t, 6> blocking{}; // fixed point: Y00 then Y2-2..Y22 coefficients
     int32_t area = 0;                  // fixed point, s^2
     std::array<int32_t, 3> albedoArea{};
     std::array<int32_t, 3> normalArea{};
     std::array<int32_t, 3> offsetArea{}; // offset in cells x area in s^2
+    int32_t frontArea = 0;               // fixed point, s^2
     friend bool operator==(const GiGeometryCell&, const GiGeometryCell&) = default;
 };
-static_assert(sizeof(GiGeometryCell) == 64);
+static_assert(sizeof(GiGeometryCell) == 68);
 
 // The canonical side of a unit normal (above): n or -n.
 glm::vec3 giCanonicalNormal(glm::vec3 n);

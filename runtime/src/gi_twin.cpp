@@ -145,7 +145,11 @@ GiSurface giSurfaceOf(const GiCascadeLayout& layout, const GiGeometryCell& cell,
     const float area = float(cell.area) / kGiFixedScale;
     const float inv_area = 1.0f / area;
     const float face = layout.cellSize * layout.cellSize;
-    s.area = area * face;
+    // Each side reflects with the area facing it: a closed thin box has both faces in the cell
+    // (front and back equal), a single two-sided quad only one, and either way a side's light
+    // falls on one face's area.
+    const float front = float(cell.frontArea) / kGiFixedScale;
+    s.area = std::max(front, area - front) * face;
     glm::vec3 normal;
     glm::vec3 offset;
     for (int ch = 0; ch < 3; ++ch) {
@@ -304,9 +308,39 @@ GiField giInject(const GiCascadeLayout& layout, std::span<const GiSurfaceLight> 
     return field;
 }
 
-glm::vec3 giPropagateStep(const GiCascadeLayout& layout, std::span<const GiGeometryCell> geometry,
-                          float weight, const GiField& current, glm::vec3 current_scale,
-                          GiField& next, std::vector<float>& crossing) {
+namespace {
+
+// keep_f of every transfer (source cell, d, f), index (source x 6 + d) x 5 + f: the geometry
+// does not change during an update, so giUpdateCascade computes it once.
+std::vector<float> transferKeep(const GiCascadeLayout& layout,
+                                std::span<const GiGeometryCell> geometry, float weight) {
+    const int n = layout.cells;
+    std::vector<float> keep(giCellCount(layout) * 30, weight);
+    for (int z = 0; z < n; ++z) {
+        for (int y = 0; y < n; ++y) {
+            for (int x = 0; x < n; ++x) {
+                const glm::ivec3 src(x, y, z);
+                const size_t si = giCellIndex(layout, src);
+                for (int d = 0; d < 6; ++d) {
+                    if (!inside(src + kDirections[size_t(d)], n)) {
+                        continue;
+                    }
+                    for (int f = 0; f < 5; ++f) {
+                        const float potential = giFacePotential(
+                            layout, geometry, src, d, faces()[size_t(d)][size_t(f)].direction);
+                        keep[(si * 6 + size_t(d)) * 5 + size_t(f)] =
+                            weight * (1.0f - std::clamp(potential, 0.0f, 1.0f));
+                    }
+                }
+            }
+        }
+    }
+    return keep;
+}
+
+glm::vec3 propagateWithKeep(const GiCascadeLayout& layout, std::span<const float> keep_table,
+                            const GiField& current, glm::vec3 current_scale, GiField& next,
+                            std::vector<float>& crossing) {
     const int n = layout.cells;
     const size_t count = giCellCount(layout);
     next = GiField(count);
@@ -334,9 +368,7 @@ glm::vec3 giPropagateStep(const GiCascadeLayout& layout, std::span<const GiGeome
                     glm::vec3 crossed(0.0f);
                     for (int f = 0; f < 5; ++f) {
                         const Face& face = faces()[size_t(d)][size_t(f)];
-                        const float potential =
-                            giFacePotential(layout, geometry, src, d, face.direction);
-                        const float keep = weight * (1.0f - std::clamp(potential, 0.0f, 1.0f));
+                        const float keep = keep_table[(si * 6 + size_t(d)) * 5 + size_t(f)];
                         const std::array<float, 4> yf = basisL1(face.direction);
                         glm::vec3 along = yf[0] * source[0];
                         for (int k = 1; k < 4; ++k) {
@@ -372,6 +404,15 @@ glm::vec3 giPropagateStep(const GiCascadeLayout& layout, std::span<const GiGeome
         }
     }
     return scale;
+}
+
+} // namespace
+
+glm::vec3 giPropagateStep(const GiCascadeLayout& layout, std::span<const GiGeometryCell> geometry,
+                          float weight, const GiField& current, glm::vec3 current_scale,
+                          GiField& next, std::vector<float>& crossing) {
+    return propagateWithKeep(layout, transferKeep(layout, geometry, weight), current, current_scale,
+                             next, crossing);
 }
 
 void giResolve(const GiCascadeLayout& layout, const std::vector<float>& crossing,
@@ -423,6 +464,7 @@ GiField giUpdateCascade(const GiCascadeLayout& layout, std::span<const GiGeometr
     const size_t count = giCellCount(layout);
     GiField total(count);
     GiField previous;
+    const std::vector<float> keep = transferKeep(layout, geometry, inputs.propagationWeight);
     std::array<std::array<glm::vec3, 4>, 6> border{};
     if (inputs.sky) {
         border = giBorderSky(*inputs.sky);
@@ -436,8 +478,7 @@ GiField giUpdateCascade(const GiCascadeLayout& layout, std::span<const GiGeometr
         std::vector<float> crossing(18 * count, 0.0f);
         glm::vec3 scale(1.0f);
         for (uint32_t it = 0; it < inputs.iterations; ++it) {
-            scale = giPropagateStep(layout, geometry, inputs.propagationWeight, current, scale,
-                                    next, crossing);
+            scale = propagateWithKeep(layout, keep, current, scale, next, crossing);
             std::swap(current, next);
         }
         GiField pass(count);

@@ -10,10 +10,10 @@
 //
 //  1. Geometry (gi_geometry.comp): buildGiGeometry.
 //  2. Surfaces (gi_surface.comp, one thread per geometry cell): the cell's surface is one
-//     two-sided element (giSurfaceOf: area, mean albedo, area-weighted canonical normal,
-//     area-weighted position). For each side m = +-n it computes the flux the side reflects,
-//     Phi = albedo x area x E(m), and the LPV cell it is injected into (the cell holding the
-//     position moved half a cell along m; -1 when that is outside the cascade).
+//     two-sided element (giSurfaceOf: area per side, mean albedo, area-weighted canonical
+//     normal, area-weighted position). For each side m = +-n it computes the flux the side
+//     reflects, Phi = albedo x area x E(m), and the LPV cell it is injected into (the cell holding
+//     the position moved half a cell along m; -1 when that is outside the cascade).
 //       First bounce:  E(m) = sum over lights of E_facing max(0, m.l) x transmittance, the
 //                      transmittance marched through the geometry volume (giTransmittance).
 //       Later bounces: E(m) = the previous bounce's radiance field as irradiance at the

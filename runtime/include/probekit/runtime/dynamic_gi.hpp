@@ -97,7 +97,7 @@ struct GiShadingInputs {
     float fadeCells = 2.0f;
     GiQuality quality = GiQuality::L1;
     // The geometry volume of the finest cascade, for the sun's visibility in the shading pass
-    // (16 int32 per cell, gi_geometry.hpp's GiGeometryCell, (resolution + 1)^3 cells).
+    // (17 int32 per cell, gi_geometry.hpp's GiGeometryCell, (resolution + 1)^3 cells).
     VkBuffer geometry = VK_NULL_HANDLE;
 };
 
@@ -140,7 +140,7 @@ public:
     std::vector<GiCascadePlacement> placements() const;
 
     // Test and debug access: reads back a cascade's radiance (GiField layout) and geometry
-    // volume (GiGeometryCell layout, as 16 int32 per cell).
+    // volume (GiGeometryCell layout, as 17 int32 per cell).
     Result<std::vector<float>> readRadiance(uint32_t cascade) const;
     Result<std::vector<int32_t>> readGeometry(uint32_t cascade) const;
 
