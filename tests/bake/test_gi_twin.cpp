@@ -200,7 +200,8 @@ INSTANTIATE_TEST_SUITE_P(GiTwin, GiTwinPropagation,
 //  (b) the path method's probes (4096 directions), with the runtime's direct sun (unshadowed
 //      irradiance x the transmittance marched through the geometry volume) added to its
 //      cascade, beside the offline LPV method's probes (traced direct + LPV) for scale.
-// Each figure is the relative RMS difference of the irradiance at the six axis normals.
+// Each figure is the relative RMS difference of the irradiance at the six axis normals; the
+// runtime does not reach the offline LPV's figures (numbers at the assertions).
 TEST(GiTwinAccuracy, SunMoveAgreesWithTheOfflineLpvAndIsCloseToThePathReference) {
     Scene scene = test::generatedScene("courtyard");
     ASSERT_EQ(scene.lights.size(), 1u);
@@ -327,6 +328,15 @@ TEST(GiTwinAccuracy, SunMoveAgreesWithTheOfflineLpvAndIsCloseToThePathReference)
                 "%.3f; offline LPV method %.3f\n",
                 indirect_runtime, indirect_offline, total_exact_direct, total_marched,
                 total_offline);
-    EXPECT_LT(relit_vs_offline, 1.0);
-    EXPECT_LT(stale_vs_offline, 1.0);
+    // Deterministic (fixed seeds); the bounds leave room for float differences between
+    // platforms. Measured: relit 0.326 and stale 0.821 from the offline cascade; indirect 0.488
+    // (offline cascade 0.362) and total 0.198 with exact direct (offline LPV method 0.139) from
+    // the path. More bounces (5) or iterations (64) change these by less than 0.01: what is
+    // left is the injection (the grid-marched sun and one element per geometry cell against
+    // the offline VPLs of exact visibility) and the 0.55 m cells.
+    EXPECT_LT(relit_vs_offline, 0.40);
+    EXPECT_GT(stale_vs_offline, 2.0 * relit_vs_offline);
+    EXPECT_LT(indirect_runtime, 0.60);
+    EXPECT_LT(total_exact_direct, 0.25);
+    EXPECT_LT(total_marched, 0.40);
 }
