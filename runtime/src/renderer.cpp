@@ -14,6 +14,7 @@
 #include <glm/geometric.hpp>
 #include <glm/gtc/packing.hpp>
 
+#include "probekit/runtime/dynamic_gi.hpp"
 #include "render_layout.h"
 #include "vk_util.hpp"
 
@@ -49,7 +50,11 @@ static_assert(uint32_t(RenderView::Shaded) == PK_VIEW_SHADED &&
               uint32_t(RenderView::Irradiance) == PK_VIEW_IRRADIANCE &&
               uint32_t(RenderView::Probes) == PK_VIEW_PROBES &&
               uint32_t(RenderView::Validity) == PK_VIEW_VALIDITY &&
-              uint32_t(RenderView::Leak) == PK_VIEW_LEAK);
+              uint32_t(RenderView::Leak) == PK_VIEW_LEAK &&
+              uint32_t(RenderView::GiIrradiance) == PK_VIEW_GI &&
+              uint32_t(RenderView::GiGeometry) == PK_VIEW_GI_GEOMETRY &&
+              uint32_t(RenderView::GiAo) == PK_VIEW_GI_AO);
+static_assert(kMaxGiCascades == PK_MAX_GI_CASCADES);
 static_assert(kMaxRenderLights == PK_MAX_LIGHTS);
 
 // Per-instance data of a probe sphere (probe_sphere.vert locations 1 and 2).
@@ -184,6 +189,13 @@ struct Renderer::Impl {
     VkDescriptorSetLayout frameLayout = VK_NULL_HANDLE;   // G-buffer pass: frame uniforms
     VkDescriptorSetLayout shadeLayout = VK_NULL_HANDLE;   // shading: uniforms + G-buffer + output
     VkDescriptorSetLayout textureLayout = VK_NULL_HANDLE; // G-buffer pass: one sampled texture
+    // Dynamic GI shading (shade.comp with PK_DYNAMIC_GI): set 2 = uniforms, four cascades'
+    // radiance, the geometry volume; its own pipeline layout and pipelines.
+    VkDescriptorSetLayout giLayout = VK_NULL_HANDLE;
+    VkPipelineLayout shadeGiPipelineLayout = VK_NULL_HANDLE;
+    VkPipeline shadeGiPipeline[2] = {VK_NULL_HANDLE, VK_NULL_HANDLE};
+    VkDescriptorSet giSet = VK_NULL_HANDLE;
+    Buffer giUniforms;
     VkPipelineLayout gbufferPipelineLayout = VK_NULL_HANDLE;
     VkPipelineLayout shadePipelineLayout = VK_NULL_HANDLE;
     VkRenderPass renderPass = VK_NULL_HANDLE;
@@ -242,6 +254,8 @@ struct Renderer::Impl {
                                        const VkPipelineVertexInputStateCreateInfo& input,
                                        bool depth_tested, VkPipeline& pipeline);
     Result<void> createTextureResources();
+    // Points set 2 at the dynamic GI's buffers and fills its uniforms (no frame in flight).
+    Result<void> writeGiSet(const GiShadingInputs& gi, const FrameSettings& settings);
     // Uploads `image` (linear RGBA) as textures[index], creating its descriptor set.
     Result<void> uploadTexture(const RgbaImage& image, size_t index);
     void destroyTexture(Texture& texture);
@@ -270,19 +284,22 @@ Renderer::Impl::~Impl() {
     if (texturePool != VK_NULL_HANDLE) {
         vkDestroyDescriptorPool(d, texturePool, nullptr);
     }
-    for (VkPipeline p : {meshPipeline, probePipeline, backgroundPipeline, shadePipeline[0],
-                         shadePipeline[1], probeViewsPipeline[0], probeViewsPipeline[1],
-                         fetchOnlyPipeline[0], fetchOnlyPipeline[1]}) {
+    destroy(d, giUniforms);
+    for (VkPipeline p :
+         {meshPipeline, probePipeline, backgroundPipeline, shadePipeline[0], shadePipeline[1],
+          probeViewsPipeline[0], probeViewsPipeline[1], fetchOnlyPipeline[0], fetchOnlyPipeline[1],
+          shadeGiPipeline[0], shadeGiPipeline[1]}) {
         if (p != VK_NULL_HANDLE) {
             vkDestroyPipeline(d, p, nullptr);
         }
     }
-    for (VkPipelineLayout l : {gbufferPipelineLayout, shadePipelineLayout}) {
+    for (VkPipelineLayout l : {gbufferPipelineLayout, shadePipelineLayout, shadeGiPipelineLayout}) {
         if (l != VK_NULL_HANDLE) {
             vkDestroyPipelineLayout(d, l, nullptr);
         }
     }
-    for (VkDescriptorSetLayout l : {volumeLayout, frameLayout, shadeLayout, textureLayout}) {
+    for (VkDescriptorSetLayout l :
+         {volumeLayout, frameLayout, shadeLayout, textureLayout, giLayout}) {
         if (l != VK_NULL_HANDLE) {
             vkDestroyDescriptorSetLayout(d, l, nullptr);
         }
@@ -402,6 +419,7 @@ public:
         Shade,
         ShadeProbeViews,
         ShadeFetchOnly,
+        ShadeGi,
         kCount
     };
 
@@ -421,7 +439,8 @@ public:
             detail::spirv::gbufferVert(),         detail::spirv::probeSphereVert(),
             detail::spirv::gbufferFrag(),         detail::spirv::backgroundVert(),
             detail::spirv::backgroundFrag(),      detail::spirv::shadeComp(),
-            detail::spirv::shadeProbeViewsComp(), detail::spirv::shadeFetchOnlyComp()};
+            detail::spirv::shadeProbeViewsComp(), detail::spirv::shadeFetchOnlyComp(),
+            detail::spirv::shadeGiComp()};
         for (size_t i = 0; i < kCount; ++i) {
             Result<VkShaderModule> module = detail::createShaderModule(m_device, codes[i]);
             if (!module) {
@@ -529,13 +548,16 @@ Result<void> Renderer::Impl::createPipelines() {
                                  modules[ShaderModules::BackgroundFrag], no_input, false,
                                  backgroundPipeline));
     // Each shading variant twice: [0] without visibility, [1] with the device's mode.
-    const std::pair<VkShaderModule, VkPipeline*> shading[3] = {
+    const std::pair<VkShaderModule, VkPipeline*> shading[4] = {
         {modules[ShaderModules::Shade], shadePipeline},
         {modules[ShaderModules::ShadeProbeViews], probeViewsPipeline},
-        {modules[ShaderModules::ShadeFetchOnly], fetchOnlyPipeline}};
+        {modules[ShaderModules::ShadeFetchOnly], fetchOnlyPipeline},
+        {modules[ShaderModules::ShadeGi], shadeGiPipeline}};
     for (const auto& [module, pipelines] : shading) {
+        const VkPipelineLayout layout =
+            pipelines == shadeGiPipeline ? shadeGiPipelineLayout : shadePipelineLayout;
         for (uint32_t enabled = 0; enabled < 2; ++enabled) {
-            PK_TRY(createShadePipeline(device(), module, shadePipelineLayout,
+            PK_TRY(createShadePipeline(device(), module, layout,
                                        enabled ? visibilityMode : PK_VISIBILITY_OFF,
                                        pipelines[enabled]));
         }
@@ -602,6 +624,19 @@ Result<void> Renderer::Impl::createLayouts() {
     pipeline_layout.setLayoutCount = 2;
     pipeline_layout.pSetLayouts = shade_sets;
     PK_VK_TRY(vkCreatePipelineLayout(device(), &pipeline_layout, nullptr, &shadePipelineLayout));
+    // Dynamic GI shading: set 2 (render_layout.h PkGiGpu, shade.comp's PK_DYNAMIC_GI blocks).
+    std::array<VkDescriptorSetLayoutBinding, 6> gi_bindings{};
+    gi_bindings[0] = {0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT,
+                      nullptr};
+    for (uint32_t i = 1; i < 6; ++i) {
+        gi_bindings[i] = {i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT,
+                          nullptr};
+    }
+    PK_TRY(detail::createDescriptorSetLayout(device(), gi_bindings, giLayout));
+    const VkDescriptorSetLayout gi_sets[3] = {volumeLayout, shadeLayout, giLayout};
+    pipeline_layout.setLayoutCount = 3;
+    pipeline_layout.pSetLayouts = gi_sets;
+    PK_VK_TRY(vkCreatePipelineLayout(device(), &pipeline_layout, nullptr, &shadeGiPipelineLayout));
     return {};
 }
 
@@ -1012,13 +1047,16 @@ void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
                              settings.view == RenderView::Leak;
     // The visibility path only where the set needs it: without, the plain filtered code.
     const size_t visibility = volumes.anyVisibility() ? 1 : 0;
+    const bool gi = settings.dynamicGi && !settings.fetchOnly && !probe_views;
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
                       settings.fetchOnly ? fetchOnlyPipeline[visibility]
                       : probe_views      ? probeViewsPipeline[visibility]
+                      : gi               ? shadeGiPipeline[visibility]
                                          : shadePipeline[visibility]);
-    const VkDescriptorSet sets[2] = {volumes.descriptorSet(), shadeSet};
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, shadePipelineLayout, 0, 2, sets, 0,
-                            nullptr);
+    const VkDescriptorSet sets[3] = {volumes.descriptorSet(), shadeSet, giSet};
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
+                            gi ? shadeGiPipelineLayout : shadePipelineLayout, 0, gi ? 3 : 2, sets,
+                            0, nullptr);
     vkCmdDispatch(cmd, (settings.width + kShadeGroup - 1) / kShadeGroup,
                   (settings.height + kShadeGroup - 1) / kShadeGroup, 1);
     if (timed) {
@@ -1075,11 +1113,12 @@ Result<Renderer> Renderer::create(GpuContext& context) {
                                : PK_VISIBILITY_BRANCH;
     PK_TRY(impl->createPipelines());
 
-    const VkDescriptorPoolSize sizes[2] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 2},
-                                           {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kShadeImages}};
+    const VkDescriptorPoolSize sizes[3] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 3},
+                                           {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kShadeImages},
+                                           {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 5}};
     VkDescriptorPoolCreateInfo pool{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-    pool.maxSets = 2;
-    pool.poolSizeCount = 2;
+    pool.maxSets = 3;
+    pool.poolSizeCount = 3;
     pool.pPoolSizes = sizes;
     PK_VK_TRY(vkCreateDescriptorPool(d, &pool, nullptr, &impl->pool));
     const VkDescriptorSetLayout layouts[2] = {impl->frameLayout, impl->shadeLayout};
@@ -1091,6 +1130,15 @@ Result<Renderer> Renderer::create(GpuContext& context) {
     PK_VK_TRY(vkAllocateDescriptorSets(d, &allocate, sets));
     impl->frameSet = sets[0];
     impl->shadeSet = sets[1];
+    allocate.descriptorSetCount = 1;
+    allocate.pSetLayouts = &impl->giLayout;
+    PK_VK_TRY(vkAllocateDescriptorSets(d, &allocate, &impl->giSet));
+    Result<Buffer> gi_uniforms = detail::createBuffer(context, sizeof(gpu::PkGiGpu),
+                                                      VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
+    if (!gi_uniforms) {
+        return gi_uniforms.error();
+    }
+    impl->giUniforms = gi_uniforms.value();
 
     Result<Buffer> uniforms = detail::createBuffer(
         context, sizeof(gpu::PkFrameGpu),
@@ -1362,6 +1410,42 @@ Result<void> Renderer::setMeshes(std::span<const RenderVertex> vertices,
     return {};
 }
 
+Result<void> Renderer::Impl::writeGiSet(const GiShadingInputs& gi, const FrameSettings& settings) {
+    if (gi.cascades < 1 || gi.cascades > kMaxGiCascades || gi.geometry == VK_NULL_HANDLE) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "renderer: dynamic GI inputs without cascades or geometry");
+    }
+    gpu::PkGiGpu block{};
+    for (uint32_t j = 0; j < gi.cascades; ++j) {
+        const GiCascadePlacement& c = gi.placement[j];
+        block.cascades[j].origin = glm::vec4(c.origin, c.cellSize);
+        block.cascades[j].info = glm::uvec4(c.cells, 0u, 0u, 0u);
+    }
+    block.info = glm::uvec4(gi.cascades, uint32_t(gi.quality), settings.bakedLight ? 1u : 0u,
+                            settings.giShadowSun ? 1u : 0u);
+    block.params = glm::vec4(gi.fadeCells, 0.0f, 0.0f, 0.0f);
+    std::memcpy(giUniforms.mapped, &block, sizeof(block));
+    std::array<VkDescriptorBufferInfo, 6> buffers{};
+    buffers[0] = {giUniforms.buffer, 0, sizeof(gpu::PkGiGpu)};
+    for (uint32_t j = 0; j < kMaxGiCascades; ++j) {
+        // Unused bindings point at the finest cascade: every descriptor must be valid.
+        buffers[1 + j] = {gi.radiance[j < gi.cascades ? j : 0], 0, VK_WHOLE_SIZE};
+    }
+    buffers[5] = {gi.geometry, 0, VK_WHOLE_SIZE};
+    std::array<VkWriteDescriptorSet, 6> writes{};
+    for (uint32_t i = 0; i < 6; ++i) {
+        writes[i].sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+        writes[i].dstSet = giSet;
+        writes[i].dstBinding = i;
+        writes[i].descriptorCount = 1;
+        writes[i].descriptorType =
+            i == 0 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+        writes[i].pBufferInfo = &buffers[i];
+    }
+    vkUpdateDescriptorSets(device(), uint32_t(writes.size()), writes.data(), 0, nullptr);
+    return {};
+}
+
 Result<Frame> Renderer::render(GpuVolumeSet& volumes, const FrameSettings& settings) {
     Impl& impl = *m_impl;
     const uint32_t max_size = impl.context->limits().maxImageDimension2D;
@@ -1388,6 +1472,16 @@ Result<Frame> Renderer::render(GpuVolumeSet& volumes, const FrameSettings& setti
     if (impl.width != settings.width || impl.height != settings.height) {
         PK_TRY(impl.context->waitIdle());
         PK_TRY(impl.createTargets(settings.width, settings.height));
+    }
+    const bool gi_view = settings.view == RenderView::GiIrradiance ||
+                         settings.view == RenderView::GiGeometry ||
+                         settings.view == RenderView::GiAo;
+    if (gi_view && !settings.dynamicGi) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "renderer: the dynamic GI views need FrameSettings::dynamicGi");
+    }
+    if (settings.dynamicGi) {
+        PK_TRY(impl.writeGiSet(*settings.dynamicGi, settings));
     }
     uint32_t instance_count = 0;
     impl.probeStats = {};
