@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
@@ -533,6 +534,46 @@ sh::ShRgb giSampleRadiance(std::span<const GiCascadeLayout> layouts,
         giZonal(result);
     }
     return result;
+}
+
+namespace {
+size_t nearestGeometryCell(const GiCascadeLayout& layout, glm::vec3 p) {
+    const int gv = layout.geometryCells();
+    const glm::ivec3 g =
+        glm::clamp(glm::ivec3(glm::floor((p - layout.origin) / layout.cellSize + 0.5f)),
+                   glm::ivec3(0), glm::ivec3(gv - 1));
+    return layout.geometryIndex(g);
+}
+} // namespace
+
+float giSunVisibility(const GiCascadeLayout& layout, std::span<const GiGeometryCell> geometry,
+                      glm::vec3 p, glm::vec3 n, glm::vec3 to_light) {
+    return giTransmittance(layout, geometry, p + 0.5f * layout.cellSize * n, to_light,
+                           std::numeric_limits<float>::infinity(), glm::ivec3(-1));
+}
+
+glm::vec3 giGeometryColour(const GiCascadeLayout& layout, std::span<const GiGeometryCell> geometry,
+                           glm::vec3 p) {
+    const GiGeometryCell& cell = geometry[nearestGeometryCell(layout, p)];
+    const float area = float(cell.area) / kGiFixedScale;
+    if (!(area > 0.0f)) {
+        return glm::vec3(0.0f);
+    }
+    const glm::vec3 albedo_area(float(cell.albedoArea[0]) / kGiFixedScale,
+                                float(cell.albedoArea[1]) / kGiFixedScale,
+                                float(cell.albedoArea[2]) / kGiFixedScale);
+    return albedo_area / area * std::min(1.0f, area);
+}
+
+float giOcclusion(const GiCascadeLayout& layout, std::span<const GiGeometryCell> geometry,
+                  glm::vec3 p, glm::vec3 n) {
+    const GiGeometryCell& cell =
+        geometry[nearestGeometryCell(layout, p + 0.5f * layout.cellSize * n)];
+    float blocked = 0.0f;
+    for (const glm::ivec3& d : kDirections) {
+        blocked += std::clamp(giCellPotential(cell, glm::vec3(d)), 0.0f, 1.0f);
+    }
+    return 1.0f - blocked / 6.0f;
 }
 
 } // namespace probekit::runtime

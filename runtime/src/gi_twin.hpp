@@ -156,6 +156,20 @@ sh::ShRgb giSampleRadiance(std::span<const GiCascadeLayout> layouts,
                            std::span<const GiField> radiance, float fade_cells, bool zonal,
                            glm::vec3 p);
 
+// The shading pass's other uses of the finest cascade's geometry volume (shade.comp):
+//  * giSunVisibility: the directional light's shadow at a surface point p with normal n,
+//    giTransmittance from p + n s / 2 towards the light, skipping nothing;
+//  * giGeometryColour (view gi-geometry): the geometry cell nearest p (clamped into the volume):
+//    its mean albedo x min(1, area / s^2), black where it holds no surface;
+//  * giOcclusion (view gi-ao): 1 - the mean over the six axis directions of the clamped blocking
+//    of the geometry cell nearest p + n s / 2.
+float giSunVisibility(const GiCascadeLayout& layout, std::span<const GiGeometryCell> geometry,
+                      glm::vec3 p, glm::vec3 n, glm::vec3 to_light);
+glm::vec3 giGeometryColour(const GiCascadeLayout& layout, std::span<const GiGeometryCell> geometry,
+                           glm::vec3 p);
+float giOcclusion(const GiCascadeLayout& layout, std::span<const GiGeometryCell> geometry,
+                  glm::vec3 p, glm::vec3 n);
+
 // The zonal band 2 hallucinated from L1 (quality level L1Zonal): along the unit direction d of
 // the L1 vector, z = sqrt(5) L00 r^2 with r = |L1| / (sqrt(3) L00) clamped to [0, 1] (per
 // channel), added as z Y2m(d) x sqrt(4 pi / 5) ... i.e. the zonal harmonic z P2(d . w): exact
