@@ -7,7 +7,11 @@
 // atomics); channels whose band 0 ends negative are zeroed. Each workgroup writes the sums of
 // kept and dropped flux per channel (two vec4 per workgroup: kept rgb, dropped rgb, summed in a
 // fixed tree order) for gi_reduce.comp, which turns them into the scale the next step applies.
-// extra.x: propagation weight.
+// The keep factors depend on the geometry alone, so they are computed once per geometry volume:
+// compiled with PK_GI_KEEP (gi_keep.comp) this file instead writes, per source cell and transfer
+// (d, f), keep_f = weight (1 - clamp(face potential, 0, 1)) to plane 5 d + f of the keep buffer
+// (30 planes of n^3 floats; the twin's transferKeep holds the same numbers), which the steps
+// read. extra.x: propagation weight.
 #extension GL_GOOGLE_include_directive : require
 #define PK_GI_STAGE
 #define PK_GI_GEOMETRY(i) geometry[i]
@@ -21,6 +25,38 @@ layout(std430, set = 0, binding = 3) readonly buffer PkGiGeometryVolume {
 #define PK_GI_GROUP 64
 layout(local_size_x = PK_GI_GROUP) in;
 
+#ifdef PK_GI_KEEP
+layout(std430, set = 0, binding = 12) writeonly buffer PkGiKeep {
+    float keep_table[];
+};
+
+void main() {
+    const PkGiLayout cascade = pk_gi_layout();
+    const int n = cascade.cells;
+    const int count = n * n * n;
+    const int si = int(gl_GlobalInvocationID.x);
+    if (si >= count) {
+        return;
+    }
+    const ivec3 src = pk_gi_cell_of_index(si, n);
+    const float weight = pk_gi_push.extra.x;
+    for (int d = 0; d < 6; ++d) {
+        const bool used = pk_gi_inside(src + pk_gi_direction(d), n);
+        for (int f = 0; f < 5; ++f) {
+            float keep = weight;
+            if (used) {
+                const float potential =
+                    pk_gi_face_potential(cascade, src, d, pk_gi_face_direction(d, f));
+                keep = weight * (1.0 - clamp(potential, 0.0, 1.0));
+            }
+            keep_table[(5 * d + f) * count + si] = keep;
+        }
+    }
+}
+#else
+layout(std430, set = 0, binding = 12) readonly buffer PkGiKeep {
+    float keep_table[];
+};
 layout(std430, set = 0, binding = 5) readonly buffer PkGiCurrent {
     float current[];
 };
@@ -50,7 +86,6 @@ void main() {
     vec3 dropped = vec3(0.0);
     if (ci < count) {
         const ivec3 c = pk_gi_cell_of_index(ci, n);
-        const float weight = pk_gi_push.extra.x;
         const vec3 current_scale = scale.xyz;
         vec3 sum[4] = vec3[4](vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0));
         for (int d = 0; d < 6; ++d) {
@@ -67,10 +102,8 @@ void main() {
             }
             vec3 crossed = vec3(0.0);
             for (int f = 0; f < 5; ++f) {
-                const vec3 w = pk_gi_face_direction(d, f);
-                const float potential = pk_gi_face_potential(cascade, src, d, w);
-                const float keep = weight * (1.0 - clamp(potential, 0.0, 1.0));
-                const vec4 yf = pk_gi_basis_l1(w);
+                const vec4 yf = pk_gi_basis_l1(pk_gi_face_direction(d, f));
+                const float keep = keep_table[(5 * d + f) * count + si];
                 vec3 along = yf[0] * source[0];
                 for (int k = 1; k < 4; ++k) {
                     along += yf[k] * source[k];
@@ -112,3 +145,4 @@ void main() {
         partials[2u * gl_WorkGroupID.x + 1u] = vec4(s_dropped[0], 0.0);
     }
 }
+#endif // PK_GI_KEEP

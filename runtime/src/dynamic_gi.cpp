@@ -61,11 +61,20 @@ enum Binding : uint32_t {
     kScale,
     kPass,
     kRadiance,
+    kKeep, // the transfers' keep factors (gi_keep.comp writes, gi_propagate.comp reads)
     kBindingCount
 };
 
-enum Pipeline : uint32_t { kPGeometry = 0, kPSurface, kPInject, kPPropagate, kPReduce, kPResolve };
-constexpr uint32_t kPipelineCount = 6;
+enum Pipeline : uint32_t {
+    kPGeometry = 0,
+    kPKeep,
+    kPSurface,
+    kPInject,
+    kPPropagate,
+    kPReduce,
+    kPResolve
+};
+constexpr uint32_t kPipelineCount = 7;
 
 enum class Stage { Occupancy, Inject, Propagate, Resolve };
 
@@ -230,6 +239,7 @@ struct GiCascadeState {
     Buffer radiance;  // the sum over bounces: what the shading pass samples
     Buffer partials;  // two vec4 per propagation workgroup
     Buffer scale;     // vec4: the flux-conserving clamp's scale for the next step
+    Buffer keep;      // 30 planes (5 d + f) of n^3 floats: each transfer's keep factor
     // Set 0 reads fields[0] and writes fields[1]; set 1 the other way round.
     VkDescriptorSet sets[2] = {VK_NULL_HANDLE, VK_NULL_HANDLE};
 
@@ -294,7 +304,7 @@ DynamicGi::Impl::~Impl() {
     vkQueueWaitIdle(context->queue());
     for (GiCascadeState& c : cascades) {
         for (Buffer* b : {&c.geometry, &c.surfaces, &c.fields[0], &c.fields[1], &c.crossing,
-                          &c.pass, &c.radiance, &c.partials, &c.scale}) {
+                          &c.pass, &c.radiance, &c.partials, &c.scale, &c.keep}) {
             detail::destroy(d, *b);
         }
     }
@@ -339,6 +349,7 @@ Result<void> DynamicGi::Impl::createPipelines() {
 
     const std::array<std::pair<std::span<const uint32_t>, const char*>, kPipelineCount> shaders = {{
         {detail::spirv::giGeometryComp(), "gi_geometry.comp"},
+        {detail::spirv::giKeepComp(), "gi_keep.comp"},
         {detail::spirv::giSurfaceComp(), "gi_surface.comp"},
         {detail::spirv::giInjectComp(), "gi_inject.comp"},
         {detail::spirv::giPropagateComp(), "gi_propagate.comp"},
@@ -391,6 +402,7 @@ Result<void> DynamicGi::Impl::createCascade(GiCascadeState& c) {
     PK_TRY(make(c.radiance, 12 * cells * sizeof(float)));
     PK_TRY(make(c.partials, 2 * groups(cells) * sizeof(glm::vec4)));
     PK_TRY(make(c.scale, sizeof(glm::vec4)));
+    PK_TRY(make(c.keep, 30 * cells * sizeof(float)));
     const VkDescriptorSetLayout layouts[2] = {setLayout, setLayout};
     VkDescriptorSetAllocateInfo allocate{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
     allocate.descriptorPool = pool;
@@ -404,8 +416,9 @@ Result<void> DynamicGi::Impl::createCascade(GiCascadeState& c) {
 void DynamicGi::Impl::writeSets(GiCascadeState& c) {
     for (int s = 0; s < 2; ++s) {
         const std::array<const Buffer*, kBindingCount> buffers = {
-            &frame,           &vertices,   &indices,    &c.geometry, &c.surfaces, &c.fields[s],
-            &c.fields[1 - s], &c.crossing, &c.partials, &c.scale,    &c.pass,     &c.radiance};
+            &frame,       &vertices,        &indices,    &c.geometry, &c.surfaces,
+            &c.fields[s], &c.fields[1 - s], &c.crossing, &c.partials, &c.scale,
+            &c.pass,      &c.radiance,      &c.keep};
         std::array<VkDescriptorBufferInfo, kBindingCount> infos{};
         std::array<VkWriteDescriptorSet, kBindingCount> writes{};
         for (uint32_t i = 0; i < kBindingCount; ++i) {
@@ -535,6 +548,9 @@ void DynamicGi::Impl::recordCascade(VkCommandBuffer cmd, GiCascadeState& c,
             dispatch(cmd, kPGeometry, c.sets[0], g, groups(triangleCount), stats);
             stageBarrier(cmd);
         }
+        // The keep factors depend on the geometry (and the fixed weight) alone.
+        dispatch(cmd, kPKeep, c.sets[0], push, groups(cells), stats);
+        stageBarrier(cmd);
         endSegment(cmd);
         stats.geometryRebuilt = true;
     }

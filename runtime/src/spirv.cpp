@@ -51,6 +51,9 @@ constexpr uint32_t kGiInjectComp[] = {
 constexpr uint32_t kGiPropagateComp[] = {
 #include "gi_propagate.comp.inc"
 };
+constexpr uint32_t kGiKeepComp[] = {
+#include "gi_keep.comp.inc"
+};
 constexpr uint32_t kGiReduceComp[] = {
 #include "gi_reduce.comp.inc"
 };
@@ -101,6 +104,9 @@ std::span<const uint32_t> giInjectComp() {
 }
 std::span<const uint32_t> giPropagateComp() {
     return kGiPropagateComp;
+}
+std::span<const uint32_t> giKeepComp() {
+    return kGiKeepComp;
 }
 std::span<const uint32_t> giReduceComp() {
     return kGiReduceComp;

@@ -90,6 +90,7 @@ std::span<const uint32_t> giGeometryComp();
 std::span<const uint32_t> giSurfaceComp();
 std::span<const uint32_t> giInjectComp();
 std::span<const uint32_t> giPropagateComp();
+std::span<const uint32_t> giKeepComp(); // gi_propagate.comp with PK_GI_KEEP
 std::span<const uint32_t> giReduceComp();
 std::span<const uint32_t> giResolveComp();
 } // namespace spirv

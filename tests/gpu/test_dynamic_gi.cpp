@@ -180,8 +180,9 @@ TEST_F(DynamicGiTest, RadianceMatchesTwinOnItsOwnGeometry) {
     DynamicGi gi = makeRoomGi(context(), settings, mesh);
     Result<runtime::GiUpdateStats> stats = gi.update(0);
     ASSERT_TRUE(stats) << stats.error().message;
-    // Per bounce: surfaces, inject, 8 propagate, 7 reduce, resolve; plus the geometry.
-    EXPECT_EQ(stats.value().dispatches, 1u + 2u * (2u + 8u + 7u + 1u));
+    // Per bounce: surfaces, inject, 8 propagate, 7 reduce, resolve; plus the geometry volume
+    // and its keep factors.
+    EXPECT_EQ(stats.value().dispatches, 2u + 2u * (2u + 8u + 7u + 1u));
     Result<std::vector<int32_t>> geometry = gi.readGeometry(0);
     ASSERT_TRUE(geometry) << geometry.error().message;
     Result<std::vector<float>> gpu = gi.readRadiance(0);
