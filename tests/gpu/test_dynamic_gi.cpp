@@ -175,42 +175,69 @@ TEST_F(DynamicGiTest, GeometryVolumeMatchesTwin) {
 TEST_F(DynamicGiTest, RadianceMatchesTwinOnItsOwnGeometry) {
     const Mesh mesh = roomScene();
     DynamicGiSettings settings = roomSettings();
+    settings.cascades = 2; // the second (0.25 m cells) holds the room in 8^3 of its cells
     settings.bounces = 2;
     settings.iterations = 8;
     DynamicGi gi = makeRoomGi(context(), settings, mesh);
     Result<runtime::GiUpdateStats> stats = gi.update(0);
     ASSERT_TRUE(stats) << stats.error().message;
-    // Per bounce: surfaces, inject, 8 propagate, 7 reduce, resolve; plus the geometry volume
-    // and its keep factors.
-    EXPECT_EQ(stats.value().dispatches, 2u + 2u * (2u + 8u + 7u + 1u));
-    Result<std::vector<int32_t>> geometry = gi.readGeometry(0);
-    ASSERT_TRUE(geometry) << geometry.error().message;
-    Result<std::vector<float>> gpu = gi.readRadiance(0);
-    ASSERT_TRUE(gpu) << gpu.error().message;
-
-    const std::vector<GiGeometryCell> cells = toCells(geometry.value());
+    // Per cascade: the geometry volume and its keep factors, then per bounce surfaces, inject,
+    // 8 propagate, 7 reduce and resolve.
+    EXPECT_EQ(stats.value().dispatches, 2u * (2u + 2u * (2u + 8u + 7u + 1u)));
     const std::vector<PunctualLight> lights = sceneLights();
     const sh::ShRgb sky = sceneSky();
-    runtime::GiCascadeInputs inputs;
-    inputs.lights = lights;
-    inputs.sky = &sky;
-    inputs.iterations = 8;
-    inputs.bounces = 2;
-    inputs.propagationWeight = settings.propagationWeight;
-    const runtime::GiField twin =
-        runtime::giUpdateCascade(layoutOf(gi.placements()[0]), cells, inputs);
-    ASSERT_EQ(gpu.value().size(), twin.data.size());
-    float peak = 0.0f;
-    float worst = 0.0f;
-    for (size_t i = 0; i < twin.data.size(); ++i) {
-        ASSERT_TRUE(std::isfinite(gpu.value()[i])) << i;
-        peak = std::max(peak, std::abs(twin.data[i]));
-        worst = std::max(worst, std::abs(gpu.value()[i] - twin.data[i]));
+    for (uint32_t k = 0; k < settings.cascades; ++k) {
+        Result<std::vector<int32_t>> geometry = gi.readGeometry(k);
+        ASSERT_TRUE(geometry) << geometry.error().message;
+        Result<std::vector<float>> gpu = gi.readRadiance(k);
+        ASSERT_TRUE(gpu) << gpu.error().message;
+        const std::vector<GiGeometryCell> cells = toCells(geometry.value());
+        runtime::GiCascadeInputs inputs;
+        inputs.lights = lights;
+        inputs.sky = &sky;
+        inputs.iterations = 8;
+        inputs.bounces = 2;
+        inputs.propagationWeight = settings.propagationWeight;
+        const runtime::GiField twin =
+            runtime::giUpdateCascade(layoutOf(gi.placements()[k]), cells, inputs);
+        ASSERT_EQ(gpu.value().size(), twin.data.size());
+        float peak = 0.0f;
+        float worst = 0.0f;
+        for (size_t i = 0; i < twin.data.size(); ++i) {
+            ASSERT_TRUE(std::isfinite(gpu.value()[i])) << i;
+            peak = std::max(peak, std::abs(twin.data[i]));
+            worst = std::max(worst, std::abs(gpu.value()[i] - twin.data[i]));
+        }
+        std::printf("radiance, cascade %u: peak |L| %.6g, max |GPU - twin| %.3g (%.3g of the "
+                    "peak)\n",
+                    k, peak, worst, worst / peak);
+        EXPECT_GT(peak, 0.01f);
+        // Measured on lavapipe: 2.3e-7 (cascade 0); float sums in a different order (the
+        // clamp's kept and dropped flux, summed in double by the twin) and fused multiply-adds
+        // on other devices stay far below this.
+        EXPECT_LE(worst, 1e-4f * peak) << "cascade " << k;
     }
-    std::printf("radiance: peak |L| %.6g, max |GPU - twin| %.3g (%.3g of the peak)\n", peak, worst,
-                worst / peak);
+}
+
+TEST_F(DynamicGiTest, Resolution64UpdatesCleanly) {
+    DynamicGiSettings settings = roomSettings();
+    settings.resolution = 64;
+    settings.cellSize = 0.0625f;
+    settings.iterations = 2;
+    const Mesh mesh = roomScene();
+    DynamicGi gi = makeRoomGi(context(), settings, mesh);
+    Result<runtime::GiUpdateStats> stats = gi.update(0);
+    ASSERT_TRUE(stats) << stats.error().message;
+    EXPECT_EQ(stats.value().cascadesUpdated, 1u);
+    Result<std::vector<float>> radiance = gi.readRadiance(0);
+    ASSERT_TRUE(radiance) << radiance.error().message;
+    ASSERT_EQ(radiance.value().size(), size_t(12) * 64 * 64 * 64);
+    float peak = 0.0f;
+    for (const float v : radiance.value()) {
+        ASSERT_TRUE(std::isfinite(v));
+        peak = std::max(peak, std::abs(v));
+    }
     EXPECT_GT(peak, 0.01f);
-    EXPECT_LE(worst, 1e-4f * peak);
 }
 
 TEST_F(DynamicGiTest, DirtyTrackingRecordsNothingWithoutChange) {
