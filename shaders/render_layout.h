@@ -33,6 +33,10 @@ using uvec4 = glm::uvec4;
 #define PK_VIEW_GI_GEOMETRY 6u // the geometry volume: mean albedo x min(1, area / s^2)
 #define PK_VIEW_GI_AO 7u       // the geometry volume's occlusion in front of the surface: grey
 
+// PkFrameGpu.info.w: flags for the dynamic GI's second shading pass (gi_shade.comp).
+#define PK_FRAME_NO_BAKED 1u        // leave the volumes' irradiance out (dynamic GI alone)
+#define PK_FRAME_GI_DIRECTIONAL 2u  // directional lights' direct light is the GI pass's
+
 // PkFrameGpu.environmentInfo.x: what the background pass draws where no geometry is.
 #define PK_ENV_NONE 0u     // nothing (the G-buffer stays cleared: black)
 #define PK_ENV_CONSTANT 1u // PkFrameGpu.environment.rgb
@@ -77,7 +81,7 @@ struct PkFrameGpu {
     uvec4 environmentInfo; // bytes 688..703: x = PK_ENV_*; yzw zero
 };
 
-// The dynamic GI's shading inputs (shade_gi.comp, set 2 binding 0; runtime::GiShadingInputs).
+// The dynamic GI's shading inputs (gi_shade.comp, binding 5; runtime::GiShadingInputs).
 #define PK_MAX_GI_CASCADES 4
 struct PkGiCascadeGpu {
     vec4 origin; // xyz world min corner (m); w = cell size (m)
@@ -86,8 +90,8 @@ struct PkGiCascadeGpu {
 struct PkGiGpu {
     PkGiCascadeGpu cascades[PK_MAX_GI_CASCADES]; // bytes 0..127, finest first
     uvec4 info;  // bytes 128..143: x = cascades, y = quality (0 L1, 1 L1 + zonal),
-                 //   z = add the baked volumes' irradiance (0/1), w = shadow the directional
-                 //   lights' direct light through the finest cascade's geometry volume (0/1)
+                 //   z = 0, w = shade the directional lights' direct light, shadowed through
+                 //   the finest cascade's geometry volume (0/1)
     vec4 params; // bytes 144..159: x = fade (cells); yzw zero
 };
 

@@ -55,6 +55,15 @@ static_assert(uint32_t(RenderView::Shaded) == PK_VIEW_SHADED &&
               uint32_t(RenderView::GiGeometry) == PK_VIEW_GI_GEOMETRY &&
               uint32_t(RenderView::GiAo) == PK_VIEW_GI_AO);
 static_assert(kMaxGiCascades == PK_MAX_GI_CASCADES);
+
+// gi_shade.comp's bindings: 0 frame uniforms, 1..3 G-buffer position, normal, albedo, 4 the
+// output, 5 the GI uniforms, 6..9 the cascades' radiance, 10 the geometry volume.
+constexpr uint32_t kGiBindings = 11;
+VkDescriptorType giDescriptorType(uint32_t binding) {
+    return binding == 0 || binding == 5 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER
+           : binding <= 4               ? VK_DESCRIPTOR_TYPE_STORAGE_IMAGE
+                                        : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+}
 static_assert(kMaxRenderLights == PK_MAX_LIGHTS);
 
 // Per-instance data of a probe sphere (probe_sphere.vert locations 1 and 2).
@@ -189,11 +198,12 @@ struct Renderer::Impl {
     VkDescriptorSetLayout frameLayout = VK_NULL_HANDLE;   // G-buffer pass: frame uniforms
     VkDescriptorSetLayout shadeLayout = VK_NULL_HANDLE;   // shading: uniforms + G-buffer + output
     VkDescriptorSetLayout textureLayout = VK_NULL_HANDLE; // G-buffer pass: one sampled texture
-    // Dynamic GI shading (shade.comp with PK_DYNAMIC_GI): set 2 = uniforms, four cascades'
-    // radiance, the geometry volume; its own pipeline layout and pipelines.
+    // The dynamic GI's shading pass (gi_shade.comp, after shade.comp): one set of the frame
+    // uniforms, three G-buffer targets, the output, its uniforms, four cascades' radiance and
+    // the geometry volume.
     VkDescriptorSetLayout giLayout = VK_NULL_HANDLE;
-    VkPipelineLayout shadeGiPipelineLayout = VK_NULL_HANDLE;
-    VkPipeline shadeGiPipeline[2] = {VK_NULL_HANDLE, VK_NULL_HANDLE};
+    VkPipelineLayout giShadePipelineLayout = VK_NULL_HANDLE;
+    VkPipeline giShadePipeline = VK_NULL_HANDLE;
     VkDescriptorSet giSet = VK_NULL_HANDLE;
     Buffer giUniforms;
     VkPipelineLayout gbufferPipelineLayout = VK_NULL_HANDLE;
@@ -285,15 +295,14 @@ Renderer::Impl::~Impl() {
         vkDestroyDescriptorPool(d, texturePool, nullptr);
     }
     destroy(d, giUniforms);
-    for (VkPipeline p :
-         {meshPipeline, probePipeline, backgroundPipeline, shadePipeline[0], shadePipeline[1],
-          probeViewsPipeline[0], probeViewsPipeline[1], fetchOnlyPipeline[0], fetchOnlyPipeline[1],
-          shadeGiPipeline[0], shadeGiPipeline[1]}) {
+    for (VkPipeline p : {meshPipeline, probePipeline, backgroundPipeline, shadePipeline[0],
+                         shadePipeline[1], probeViewsPipeline[0], probeViewsPipeline[1],
+                         fetchOnlyPipeline[0], fetchOnlyPipeline[1], giShadePipeline}) {
         if (p != VK_NULL_HANDLE) {
             vkDestroyPipeline(d, p, nullptr);
         }
     }
-    for (VkPipelineLayout l : {gbufferPipelineLayout, shadePipelineLayout, shadeGiPipelineLayout}) {
+    for (VkPipelineLayout l : {gbufferPipelineLayout, shadePipelineLayout, giShadePipelineLayout}) {
         if (l != VK_NULL_HANDLE) {
             vkDestroyPipelineLayout(d, l, nullptr);
         }
@@ -548,20 +557,20 @@ Result<void> Renderer::Impl::createPipelines() {
                                  modules[ShaderModules::BackgroundFrag], no_input, false,
                                  backgroundPipeline));
     // Each shading variant twice: [0] without visibility, [1] with the device's mode.
-    const std::pair<VkShaderModule, VkPipeline*> shading[4] = {
+    const std::pair<VkShaderModule, VkPipeline*> shading[3] = {
         {modules[ShaderModules::Shade], shadePipeline},
         {modules[ShaderModules::ShadeProbeViews], probeViewsPipeline},
-        {modules[ShaderModules::ShadeFetchOnly], fetchOnlyPipeline},
-        {modules[ShaderModules::ShadeGi], shadeGiPipeline}};
+        {modules[ShaderModules::ShadeFetchOnly], fetchOnlyPipeline}};
     for (const auto& [module, pipelines] : shading) {
-        const VkPipelineLayout layout =
-            pipelines == shadeGiPipeline ? shadeGiPipelineLayout : shadePipelineLayout;
         for (uint32_t enabled = 0; enabled < 2; ++enabled) {
-            PK_TRY(createShadePipeline(device(), module, layout,
+            PK_TRY(createShadePipeline(device(), module, shadePipelineLayout,
                                        enabled ? visibilityMode : PK_VISIBILITY_OFF,
                                        pipelines[enabled]));
         }
     }
+    // The GI pass reads no volume: its specialisation constant is unused.
+    PK_TRY(createShadePipeline(device(), modules[ShaderModules::ShadeGi], giShadePipelineLayout,
+                               PK_VISIBILITY_OFF, giShadePipeline));
     return {};
 }
 
@@ -624,19 +633,15 @@ Result<void> Renderer::Impl::createLayouts() {
     pipeline_layout.setLayoutCount = 2;
     pipeline_layout.pSetLayouts = shade_sets;
     PK_VK_TRY(vkCreatePipelineLayout(device(), &pipeline_layout, nullptr, &shadePipelineLayout));
-    // Dynamic GI shading: set 2 (render_layout.h PkGiGpu, shade.comp's PK_DYNAMIC_GI blocks).
-    std::array<VkDescriptorSetLayoutBinding, 6> gi_bindings{};
-    gi_bindings[0] = {0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT,
-                      nullptr};
-    for (uint32_t i = 1; i < 6; ++i) {
-        gi_bindings[i] = {i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT,
-                          nullptr};
+    // The dynamic GI pass (gi_shade.comp's bindings 0..10).
+    std::array<VkDescriptorSetLayoutBinding, kGiBindings> gi_bindings{};
+    for (uint32_t i = 0; i < kGiBindings; ++i) {
+        gi_bindings[i] = {i, giDescriptorType(i), 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr};
     }
     PK_TRY(detail::createDescriptorSetLayout(device(), gi_bindings, giLayout));
-    const VkDescriptorSetLayout gi_sets[3] = {volumeLayout, shadeLayout, giLayout};
-    pipeline_layout.setLayoutCount = 3;
-    pipeline_layout.pSetLayouts = gi_sets;
-    PK_VK_TRY(vkCreatePipelineLayout(device(), &pipeline_layout, nullptr, &shadeGiPipelineLayout));
+    pipeline_layout.setLayoutCount = 1;
+    pipeline_layout.pSetLayouts = &giLayout;
+    PK_VK_TRY(vkCreatePipelineLayout(device(), &pipeline_layout, nullptr, &giShadePipelineLayout));
     return {};
 }
 
@@ -960,8 +965,19 @@ void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
     frame.cameraForward = glm::vec4(basis.forward, 0.0f);
     frame.environment = environment;
     frame.environmentInfo = glm::uvec4(environmentType, 0u, 0u, 0u);
+    const bool probe_views = settings.view == RenderView::Probes ||
+                             settings.view == RenderView::Validity ||
+                             settings.view == RenderView::Leak;
+    const bool gi = settings.dynamicGi && !settings.fetchOnly && !probe_views;
+    uint32_t flags = 0;
+    if (gi && !settings.bakedLight) {
+        flags |= PK_FRAME_NO_BAKED;
+    }
+    if (gi && settings.giShadowSun) {
+        flags |= PK_FRAME_GI_DIRECTIONAL;
+    }
     frame.info = glm::uvec4(uint32_t(settings.view), uint32_t(settings.lights.size()),
-                            settings.directLight ? 1u : 0u, 0u);
+                            settings.directLight ? 1u : 0u, flags);
     frame.size = glm::uvec4(settings.width, settings.height, 0u, 0u);
     for (size_t i = 0; i < settings.lights.size(); ++i) {
         frame.lights[i] = packLight(settings.lights[i]);
@@ -1041,24 +1057,30 @@ void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
     detail::imageBarrier(cmd, color.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                          VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_TRANSFER_BIT, 0,
                          VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT);
-    // The debug views' variant (shade.comp's PK_PROBE_VIEWS).
-    const bool probe_views = settings.view == RenderView::Probes ||
-                             settings.view == RenderView::Validity ||
-                             settings.view == RenderView::Leak;
+    // The debug views' variant (shade.comp's PK_PROBE_VIEWS): probe_views above.
     // The visibility path only where the set needs it: without, the plain filtered code.
     const size_t visibility = volumes.anyVisibility() ? 1 : 0;
-    const bool gi = settings.dynamicGi && !settings.fetchOnly && !probe_views;
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
                       settings.fetchOnly ? fetchOnlyPipeline[visibility]
                       : probe_views      ? probeViewsPipeline[visibility]
-                      : gi               ? shadeGiPipeline[visibility]
                                          : shadePipeline[visibility]);
-    const VkDescriptorSet sets[3] = {volumes.descriptorSet(), shadeSet, giSet};
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
-                            gi ? shadeGiPipelineLayout : shadePipelineLayout, 0, gi ? 3 : 2, sets,
-                            0, nullptr);
+    const VkDescriptorSet sets[2] = {volumes.descriptorSet(), shadeSet};
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, shadePipelineLayout, 0, 2, sets, 0,
+                            nullptr);
     vkCmdDispatch(cmd, (settings.width + kShadeGroup - 1) / kShadeGroup,
                   (settings.height + kShadeGroup - 1) / kShadeGroup, 1);
+    if (gi) {
+        // The GI pass reads and rewrites what the shading pass wrote.
+        detail::imageBarrier(cmd, color.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_GENERAL,
+                             VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                             VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                             VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT);
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, giShadePipeline);
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, giShadePipelineLayout, 0, 1,
+                                &giSet, 0, nullptr);
+        vkCmdDispatch(cmd, (settings.width + kShadeGroup - 1) / kShadeGroup,
+                      (settings.height + kShadeGroup - 1) / kShadeGroup, 1);
+    }
     if (timed) {
         vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 2);
     }
@@ -1113,8 +1135,8 @@ Result<Renderer> Renderer::create(GpuContext& context) {
                                : PK_VISIBILITY_BRANCH;
     PK_TRY(impl->createPipelines());
 
-    const VkDescriptorPoolSize sizes[3] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 3},
-                                           {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kShadeImages},
+    const VkDescriptorPoolSize sizes[3] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 4},
+                                           {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kShadeImages + 4},
                                            {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 5}};
     VkDescriptorPoolCreateInfo pool{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
     pool.maxSets = 3;
@@ -1421,26 +1443,35 @@ Result<void> Renderer::Impl::writeGiSet(const GiShadingInputs& gi, const FrameSe
         block.cascades[j].origin = glm::vec4(c.origin, c.cellSize);
         block.cascades[j].info = glm::uvec4(c.cells, 0u, 0u, 0u);
     }
-    block.info = glm::uvec4(gi.cascades, uint32_t(gi.quality), settings.bakedLight ? 1u : 0u,
-                            settings.giShadowSun ? 1u : 0u);
+    block.info = glm::uvec4(gi.cascades, uint32_t(gi.quality), 0u,
+                            settings.directLight && settings.giShadowSun ? 1u : 0u);
     block.params = glm::vec4(gi.fadeCells, 0.0f, 0.0f, 0.0f);
     std::memcpy(giUniforms.mapped, &block, sizeof(block));
-    std::array<VkDescriptorBufferInfo, 6> buffers{};
-    buffers[0] = {giUniforms.buffer, 0, sizeof(gpu::PkGiGpu)};
+    std::array<VkDescriptorBufferInfo, kGiBindings> buffers{};
+    std::array<VkDescriptorImageInfo, kGiBindings> images{};
+    buffers[0] = {frameUniforms.buffer, 0, sizeof(gpu::PkFrameGpu)};
+    images[1] = {VK_NULL_HANDLE, position.view, VK_IMAGE_LAYOUT_GENERAL};
+    images[2] = {VK_NULL_HANDLE, normal.view, VK_IMAGE_LAYOUT_GENERAL};
+    images[3] = {VK_NULL_HANDLE, albedo.view, VK_IMAGE_LAYOUT_GENERAL};
+    images[4] = {VK_NULL_HANDLE, color.view, VK_IMAGE_LAYOUT_GENERAL};
+    buffers[5] = {giUniforms.buffer, 0, sizeof(gpu::PkGiGpu)};
     for (uint32_t j = 0; j < kMaxGiCascades; ++j) {
         // Unused bindings point at the finest cascade: every descriptor must be valid.
-        buffers[1 + j] = {gi.radiance[j < gi.cascades ? j : 0], 0, VK_WHOLE_SIZE};
+        buffers[6 + j] = {gi.radiance[j < gi.cascades ? j : 0], 0, VK_WHOLE_SIZE};
     }
-    buffers[5] = {gi.geometry, 0, VK_WHOLE_SIZE};
-    std::array<VkWriteDescriptorSet, 6> writes{};
-    for (uint32_t i = 0; i < 6; ++i) {
+    buffers[10] = {gi.geometry, 0, VK_WHOLE_SIZE};
+    std::array<VkWriteDescriptorSet, kGiBindings> writes{};
+    for (uint32_t i = 0; i < kGiBindings; ++i) {
         writes[i].sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
         writes[i].dstSet = giSet;
         writes[i].dstBinding = i;
         writes[i].descriptorCount = 1;
-        writes[i].descriptorType =
-            i == 0 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-        writes[i].pBufferInfo = &buffers[i];
+        writes[i].descriptorType = giDescriptorType(i);
+        if (writes[i].descriptorType == VK_DESCRIPTOR_TYPE_STORAGE_IMAGE) {
+            writes[i].pImageInfo = &images[i];
+        } else {
+            writes[i].pBufferInfo = &buffers[i];
+        }
     }
     vkUpdateDescriptorSets(device(), uint32_t(writes.size()), writes.data(), 0, nullptr);
     return {};

@@ -84,7 +84,7 @@ std::span<const uint32_t> backgroundFrag();
 std::span<const uint32_t> shadeComp();
 std::span<const uint32_t> shadeProbeViewsComp();
 std::span<const uint32_t> shadeFetchOnlyComp();
-std::span<const uint32_t> shadeGiComp(); // shade.comp with PK_DYNAMIC_GI
+std::span<const uint32_t> shadeGiComp(); // gi_shade.comp
 std::span<const uint32_t> irradiancePointsComp();
 std::span<const uint32_t> giGeometryComp();
 std::span<const uint32_t> giSurfaceComp();
