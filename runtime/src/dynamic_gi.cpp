@@ -252,6 +252,7 @@ struct GiCascadeState {
     GiCascadePlacement litPlacement;
     std::vector<PunctualLight> litLights;
     sh::ShRgb litSky;
+    uint64_t litTuning = 0;
 };
 
 struct DynamicGi::Impl {
@@ -268,6 +269,8 @@ struct DynamicGi::Impl {
     uint32_t vertexCount = 0;
     uint32_t triangleCount = 0;
     uint64_t geometryVersion = 1;
+    // Bumped by setTuning when the transport changes (iterations, bounces, weight).
+    uint64_t tuningVersion = 1;
     std::vector<PunctualLight> lights;
     sh::ShRgb sky;
     glm::vec3 camera{0.0f};
@@ -722,6 +725,28 @@ void DynamicGi::setSky(const sh::ShRgb& radiance) {
     m_impl->sky = radiance;
 }
 
+Result<void> DynamicGi::setTuning(const DynamicGiSettings& settings) {
+    if (const std::string problem = checkSettings(settings); !problem.empty()) {
+        return makeError(ErrorCode::InvalidArgument, "DynamicGi::setTuning: " + problem);
+    }
+    DynamicGiSettings& old = m_impl->settings;
+    if (settings.cascades != old.cascades || settings.resolution != old.resolution ||
+        settings.cellSize != old.cellSize) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "DynamicGi::setTuning: cascades, resolution and cellSize are fixed at "
+                         "create (create another DynamicGi to change them)");
+    }
+    const bool weight = settings.propagationWeight != old.propagationWeight;
+    if (weight) {
+        ++m_impl->geometryVersion; // the keep factors are built with the geometry volume
+    }
+    if (weight || settings.iterations != old.iterations || settings.bounces != old.bounces) {
+        ++m_impl->tuningVersion;
+    }
+    old = settings;
+    return {};
+}
+
 void DynamicGi::setCamera(glm::vec3 position, glm::vec3 forward) {
     m_impl->camera = position;
     m_impl->forward = forward;
@@ -739,7 +764,8 @@ Result<GiUpdateStats> DynamicGi::recordUpdate(VkCommandBuffer cmd, uint64_t fram
         const GiCascadeState& c = impl.cascades[k];
         rebuild[k] = c.builtVersion != impl.geometryVersion ||
                      !samePlacement(c.builtPlacement, placements[k]);
-        const bool dirty = !c.updated || rebuild[k] || lightsChanged(c.litLights, impl.lights, s) ||
+        const bool dirty = !c.updated || rebuild[k] || c.litTuning != impl.tuningVersion ||
+                           lightsChanged(c.litLights, impl.lights, s) ||
                            skyChanged(c.litSky, impl.sky, s);
         const bool interval_passed = frame < c.lastFrame || frame - c.lastFrame >= s.updateInterval;
         due[k] = !c.updated || (dirty && interval_passed);
@@ -784,6 +810,7 @@ Result<GiUpdateStats> DynamicGi::recordUpdate(VkCommandBuffer cmd, uint64_t fram
         c.litPlacement = placements[k];
         c.litLights = impl.lights;
         c.litSky = impl.sky;
+        c.litTuning = impl.tuningVersion;
         ++stats.cascadesUpdated;
     }
     // The shading pass (a compute shader) reads the radiance and the geometry volume.

@@ -281,10 +281,31 @@ TEST_F(DynamicGiTest, DirtyTrackingRecordsNothingWithoutChange) {
     EXPECT_EQ(s.cascadesUpdated, 2u);
     EXPECT_FALSE(s.geometryRebuilt);
 
+    // Tuning: the fade and the quality are the shading's (no relight); more steps relight
+    // without rebuilding; another propagation weight rebuilds the keep factors too.
+    DynamicGiSettings tuned = settings;
+    tuned.fadeCells = 3.0f;
+    tuned.quality = runtime::GiQuality::L1Zonal;
+    ASSERT_TRUE(gi.setTuning(tuned));
+    EXPECT_EQ(step(7).dispatches, 0u);
+    tuned.iterations = 3;
+    ASSERT_TRUE(gi.setTuning(tuned));
+    s = step(8);
+    EXPECT_EQ(s.cascadesUpdated, 2u);
+    EXPECT_FALSE(s.geometryRebuilt);
+    tuned.propagationWeight = 0.9f;
+    ASSERT_TRUE(gi.setTuning(tuned));
+    s = step(9);
+    EXPECT_EQ(s.cascadesUpdated, 2u);
+    EXPECT_TRUE(s.geometryRebuilt);
+    EXPECT_EQ(step(10).dispatches, 0u);
+    tuned.resolution = 64;
+    EXPECT_FALSE(gi.setTuning(tuned));
+
     // The camera moved by several finest cells: the finest cascade's geometry is rebuilt.
     gi.setCamera(glm::vec3(0.05f + 3.0f * settings.cellSize, 1.0f, 0.0f),
                  glm::vec3(0.0f, 0.0f, -1.0f));
-    s = step(6);
+    s = step(11);
     EXPECT_GE(s.cascadesUpdated, 1u);
     EXPECT_TRUE(s.geometryRebuilt);
 }

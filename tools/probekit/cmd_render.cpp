@@ -861,8 +861,11 @@ int runRenderDynamicGi(const RenderOptions& o) {
     gi_settings.bounces = o.giBounces;
     gi_settings.quality =
         o.giQuality == "zonal" ? runtime::GiQuality::L1Zonal : runtime::GiQuality::L1;
-    // The default cell holds the scene in the coarsest cascade: centre it on the scene.
-    gi_settings.aheadFraction = 0.0f;
+    // The default cell holds the scene in the coarsest cascade: centred on the scene. With
+    // --gi-cell the cascades follow the camera, centred ahead of it (the library's default).
+    if (o.giCell <= 0.0f) {
+        gi_settings.aheadFraction = 0.0f;
+    }
     Result<runtime::DynamicGi> gi = runtime::DynamicGi::create(gpu, gi_settings);
     if (!gi) {
         return fail(gi.error().message);

@@ -121,15 +121,21 @@ public:
     Result<void> setLights(std::span<const PunctualLight> lights);
     // The sky's radiance SH (L2; the direction light comes from), or black for none.
     void setSky(const sh::ShRgb& radiance);
+    // New tuning: everything but cascades, resolution and cellSize (InvalidArgument when those
+    // differ, or on a setting outside its range). A change of iterations, bounces or
+    // propagationWeight marks every cascade dirty (the weight also rebuilds the geometry
+    // volume's keep factors); the others take effect without a relight (fade and quality in the
+    // next frame's shading, thresholds, interval and aheadFraction at the next recordUpdate).
+    Result<void> setTuning(const DynamicGiSettings& settings);
     // Camera position and unit forward direction: where the cascades are placed.
     void setCamera(glm::vec3 position, glm::vec3 forward);
 
     // Records into `cmd` the updates that are due: a cascade is due when it is dirty (its
-    // placement moved, geometry, lights, sky or settings changed) and at least updateInterval
-    // frames have passed since the last update (the first update is always due). The buffers
-    // the shading pass reads are written by the end of the recorded commands (a barrier to the
-    // compute shader stage is recorded after them). The command buffer must be submitted
-    // before the next recordUpdate; timings() then reads that submission's timestamps.
+    // placement moved, geometry, lights, sky or the transport's tuning changed) and at least
+    // updateInterval frames have passed since the last update (the first update is always due). The
+    // buffers the shading pass reads are written by the end of the recorded commands (a barrier to
+    // the compute shader stage is recorded after them). The command buffer must be submitted before
+    // the next recordUpdate; timings() then reads that submission's timestamps.
     Result<GiUpdateStats> recordUpdate(VkCommandBuffer cmd, uint64_t frame);
     // recordUpdate in a one-time command buffer, submitted and waited for.
     Result<GiUpdateStats> update(uint64_t frame);
