@@ -7,55 +7,20 @@
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 
+#include "probekit/formats/lpv_transport.hpp"
+
 namespace probekit::runtime {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 const float kSqrtFourPi = float(std::sqrt(4.0 * kPi));
 
-constexpr std::array<glm::ivec3, 6> kDirections = {glm::ivec3(1, 0, 0), glm::ivec3(-1, 0, 0),
-                                                   glm::ivec3(0, 1, 0), glm::ivec3(0, -1, 0),
-                                                   glm::ivec3(0, 0, 1), glm::ivec3(0, 0, -1)};
-// SH index of the band-1 function along each axis (Y11 = x, Y1-1 = y, Y10 = z).
-constexpr std::array<int, 3> kBandOneIndex = {3, 1, 2};
-
-std::array<float, 4> basisL1(glm::vec3 w) {
-    return {sh::kY00, sh::kY1 * w.y, sh::kY1 * w.z, sh::kY1 * w.x};
-}
-
-// The five faces a transfer towards neighbour d reaches (baker/src/lpv.hpp, "Propagation"):
-// direction from the source centre to the face centre and solid angle, far face first, then
-// the side faces in axis order, +0.5 before -0.5. The shader's table is these numbers.
-struct Face {
-    glm::vec3 direction;
-    float solidAngle;
-};
-std::array<std::array<Face, 5>, 6> makeFaces() {
-    const double far_solid_angle = 4.0 * std::asin(0.1);
-    const double side_solid_angle = (4.0 * kPi / 6.0 - far_solid_angle) / 4.0;
-    std::array<std::array<Face, 5>, 6> table{};
-    for (int d = 0; d < 6; ++d) {
-        const glm::dvec3 main(kDirections[size_t(d)]);
-        table[size_t(d)][0] = Face{glm::vec3(main), float(far_solid_angle)};
-        int slot = 1;
-        for (int other = 0; other < 3; ++other) {
-            if (kDirections[size_t(d)][other] != 0) {
-                continue;
-            }
-            for (double side : {0.5, -0.5}) {
-                glm::dvec3 to_centre = main;
-                to_centre[other] = side;
-                table[size_t(d)][size_t(slot++)] =
-                    Face{glm::vec3(glm::normalize(to_centre)), float(side_solid_angle)};
-            }
-        }
-    }
-    return table;
-}
-const std::array<std::array<Face, 5>, 6>& faces() {
-    static const auto table = makeFaces();
-    return table;
-}
+// The shared transport (formats/lpv_transport.hpp, as the offline LPV's).
+using lpv::basisL1;
+using lpv::Face;
+using lpv::faces;
+using lpv::kBandOneIndex;
+using lpv::kDirections;
 
 bool inside(glm::ivec3 c, int n) {
     return glm::all(glm::greaterThanEqual(c, glm::ivec3(0))) &&
@@ -421,8 +386,6 @@ void giResolve(const GiCascadeLayout& layout, const std::vector<float>& crossing
     const int n = layout.cells;
     const size_t count = giCellCount(layout);
     const float inv_area = 1.0f / (layout.cellSize * layout.cellSize);
-    const float band0 = 1.0f / (6.0f * sh::kCosineLobe[0] * sh::kY00);
-    const float band1 = 1.0f / (2.0f * sh::kCosineLobe[1] * sh::kY1);
     for (int z = 0; z < n; ++z) {
         for (int y = 0; y < n; ++y) {
             for (int x = 0; x < n; ++x) {
@@ -430,29 +393,19 @@ void giResolve(const GiCascadeLayout& layout, const std::vector<float>& crossing
                 const size_t i = giCellIndex(layout, c);
                 std::array<glm::vec3, 6> e{};
                 for (int d = 0; d < 6; ++d) {
-                    const int travel = d ^ 1;
-                    auto crossed = [&](size_t cell) {
-                        return glm::vec3(crossing[(3 * size_t(travel)) * count + cell],
-                                         crossing[(3 * size_t(travel) + 1) * count + cell],
-                                         crossing[(3 * size_t(travel) + 2) * count + cell]);
-                    };
-                    const bool from_inside = inside(c + kDirections[size_t(d)], n);
-                    const glm::ivec3 onward = c - kDirections[size_t(d)];
-                    if (!inside(onward, n)) {
-                        e[size_t(d)] = inv_area * crossed(i);
-                    } else if (!from_inside) {
-                        e[size_t(d)] = inv_area * crossed(giCellIndex(layout, onward));
-                    } else {
-                        e[size_t(d)] =
-                            0.5f * inv_area * (crossed(i) + crossed(giCellIndex(layout, onward)));
-                    }
+                    e[size_t(d)] = lpv::oneSidedIrradiance(
+                        c, d, inv_area, [&](glm::ivec3 q) { return inside(q, n); },
+                        [&](glm::ivec3 q, int travel) {
+                            const size_t k = giCellIndex(layout, q);
+                            return glm::vec3(crossing[(3 * size_t(travel)) * count + k],
+                                             crossing[(3 * size_t(travel) + 1) * count + k],
+                                             crossing[(3 * size_t(travel) + 2) * count + k]);
+                        });
                 }
-                const glm::vec3 l0 = band0 * (e[0] + e[1] + e[2] + e[3] + e[4] + e[5]);
-                for (int ch = 0; ch < 3; ++ch) {
-                    radiance.at(i, 0, ch) += l0[ch];
-                    for (int axis = 0; axis < 3; ++axis) {
-                        radiance.at(i, kBandOneIndex[size_t(axis)], ch) +=
-                            band1 * (e[size_t(2 * axis)][ch] - e[size_t(2 * axis + 1)][ch]);
+                const std::array<glm::vec3, 4> r = lpv::radianceFromOneSided(e);
+                for (int k = 0; k < 4; ++k) {
+                    for (int ch = 0; ch < 3; ++ch) {
+                        radiance.at(i, k, ch) += r[size_t(k)][ch];
                     }
                 }
             }

@@ -120,7 +120,8 @@ GiCascadeLayout layoutOf(const runtime::GiCascadePlacement& p) {
 
 std::vector<GiGeometryCell> toCells(const std::vector<int32_t>& ints) {
     std::vector<GiGeometryCell> cells(ints.size() / 17);
-    std::memcpy(cells.data(), ints.data(), cells.size() * sizeof(GiGeometryCell));
+    std::memcpy(static_cast<void*>(cells.data()), ints.data(),
+                cells.size() * sizeof(GiGeometryCell));
     return cells;
 }
 

@@ -76,7 +76,7 @@ Twin readTwin(const DynamicGi& gi) {
     Result<std::vector<int32_t>> geometry = gi.readGeometry(0);
     EXPECT_TRUE(geometry.ok());
     t.geometry.resize(geometry.value().size() / (sizeof(GiGeometryCell) / sizeof(int32_t)));
-    std::memcpy(t.geometry.data(), geometry.value().data(),
+    std::memcpy(static_cast<void*>(t.geometry.data()), geometry.value().data(),
                 t.geometry.size() * sizeof(GiGeometryCell));
     return t;
 }

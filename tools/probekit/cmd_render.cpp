@@ -937,8 +937,8 @@ int runRenderDynamicGi(const RenderOptions& o) {
             if (auto r = gi.value().setLights(lights); !r) {
                 return fail(r.error().message);
             }
-        } else {
-            gi.value().setGeometry(flat.vertices, flat.indices);
+        } else if (auto r = gi.value().setGeometry(flat.vertices, flat.indices); !r) {
+            return fail(r.error().message);
         }
         Result<runtime::GiUpdateStats> stats = gi.value().update(uint64_t(o.frames + i));
         if (!stats) {
@@ -956,7 +956,9 @@ int runRenderDynamicGi(const RenderOptions& o) {
     }
     // The geometry volume alone: rebuilt by a geometry change.
     for (int i = 0; i < std::min(o.bench, 8) && occupancy.empty(); ++i) {
-        gi.value().setGeometry(flat.vertices, flat.indices);
+        if (auto r = gi.value().setGeometry(flat.vertices, flat.indices); !r) {
+            return fail(r.error().message);
+        }
         Result<runtime::GiUpdateStats> stats =
             gi.value().update(uint64_t(o.frames + o.bench + kWarmupFrames + i));
         if (!stats) {
