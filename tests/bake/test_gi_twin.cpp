@@ -62,6 +62,26 @@ LpvCascadeLayout offlineLayout(const GiCascadeLayout& l) {
     return o;
 }
 
+// The offline LPV method's settings on a 32-cell grid.
+LpvConfig offlineConfig(uint32_t iterations) {
+    LpvConfig lpv;
+    lpv.grid = 32;
+    lpv.iterations = iterations;
+    return lpv;
+}
+
+// The offline LPV method's cascade on `layout`: its lights (VPLs of every bounce, escape rays;
+// seed 1) propagated on the same grid as the twin's.
+LpvCascades offlineCascade(const Scene& scene, const LpvConfig& lpv,
+                           const GiCascadeLayout& layout) {
+    const std::unique_ptr<RayTracer> tracer = std::move(RayTracer::create(scene).value());
+    VolumeDesc desc;
+    desc.grid = grid::GridLayout(scene.bounds, glm::uvec3(4), grid::PositionMode::Center);
+    const LpvLights lights = prepareLpvLights(scene, *tracer, lpv, {desc}, 1, 2);
+    return LpvCascades(scene, lights.injection, {offlineLayout(layout)}, resolveLpvSettings(lpv),
+                       2);
+}
+
 // Irradiance (all channels) of L1 radiance at the six axis normals.
 std::array<glm::vec3, 6> axisIrradiance(const sh::ShRgb& radiance) {
     static const std::array<glm::vec3, 6> normals = {glm::vec3(1, 0, 0), glm::vec3(-1, 0, 0),
@@ -89,16 +109,6 @@ double relativeRms(const std::vector<sh::ShRgb>& a, const std::vector<sh::ShRgb>
         }
     }
     return std::sqrt(diff / ref);
-}
-
-sh::ShRgb fieldAt(const GiField& f, size_t cell) {
-    sh::ShRgb out;
-    for (int k = 0; k < 4; ++k) {
-        for (int ch = 0; ch < 3; ++ch) {
-            out.rgb[size_t(k)][ch] = f.at(cell, k, ch);
-        }
-    }
-    return out;
 }
 
 // Points on a lattice inside the courtyard's open interior (x, z in -7..7, y in 0.5..4.5).
@@ -231,15 +241,8 @@ TEST(GiTwinAccuracy, SunMoveAgreesWithTheOfflineLpvAndIsCloseToThePathReference)
     const GiField relit = giUpdateCascade(layout, geometry, inputs);
 
     // (a) The offline LPV for the moved sun on the same grid: its cascade (indirect light).
-    const std::unique_ptr<RayTracer> tracer = std::move(RayTracer::create(scene).value());
-    LpvConfig lpv;
-    lpv.grid = 32;
-    lpv.iterations = kIterations;
-    VolumeDesc desc;
-    desc.grid = grid::GridLayout(scene.bounds, glm::uvec3(4), grid::PositionMode::Center);
-    const LpvLights lights = prepareLpvLights(scene, *tracer, lpv, {desc}, 1, 2);
-    const LpvCascades offline(scene, lights.injection, {offlineLayout(layout)},
-                              resolveLpvSettings(lpv), 2);
+    const LpvConfig lpv = offlineConfig(kIterations);
+    const LpvCascades offline = offlineCascade(scene, lpv, layout);
 
     const std::vector<glm::vec3> points = courtyardPoints();
     const std::array<GiCascadeLayout, 1> layouts{layout};
@@ -370,15 +373,8 @@ TEST(GiTwinAccuracy, PointLightMoveAndTheThinWall) {
     const std::array<GiField, 1> relit{giUpdateCascade(layout, geometry, inputs)};
     const std::array<GiCascadeLayout, 1> layouts{layout};
 
-    const std::unique_ptr<RayTracer> tracer = std::move(RayTracer::create(scene).value());
-    LpvConfig lpv;
-    lpv.grid = 32;
-    lpv.iterations = 32;
-    VolumeDesc desc;
-    desc.grid = grid::GridLayout(scene.bounds, glm::uvec3(4), grid::PositionMode::Center);
-    const LpvLights lights = prepareLpvLights(scene, *tracer, lpv, {desc}, 1, 2);
-    const LpvCascades offline(scene, lights.injection, {offlineLayout(layout)},
-                              resolveLpvSettings(lpv), 2);
+    const LpvConfig lpv = offlineConfig(32);
+    const LpvCascades offline = offlineCascade(scene, lpv, layout);
 
     std::vector<sh::ShRgb> twin_relit, twin_stale, offline_lpv;
     for (int x = 0; x < 8; ++x) {
