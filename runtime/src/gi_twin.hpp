@@ -25,11 +25,14 @@
 //  4. Propagate (gi_propagate.comp, one thread per LPV cell, `iterations` times, ping-pong):
 //     giPropagateStep. The flux-conserving clamp needs the field's total flux, so each step
 //     also writes per-workgroup partial sums and gi_reduce.comp turns them into the per-channel
-//     scale the next step applies when it reads.
+//     scale the next step applies when it reads. Each transfer's keep factor depends on the
+//     geometry alone, so gi_keep.comp computes it once per geometry volume (the twin's
+//     giUpdateCascade likewise; giPropagateStep computes it itself).
 //  5. Resolve (gi_resolve.comp, one thread per LPV cell): face crossings -> L1 radiance SH,
 //     added to the cascade's radiance (bounces accumulate).
 //
-// Sampling (shade.comp's pk_gi_radiance): giSampleRadiance.
+// Shading (gi_shade.comp, after shade.comp): giSampleRadiance per pixel (pk_gi_irradiance), and
+// the functions below.
 //
 // Units: flux W, intensity W/sr, radiance W/(sr m^2), as offline. Light "comes from" -w for an
 // intensity travelling along w; radiance SH is indexed by the direction light comes from.
@@ -156,7 +159,7 @@ sh::ShRgb giSampleRadiance(std::span<const GiCascadeLayout> layouts,
                            std::span<const GiField> radiance, float fade_cells, bool zonal,
                            glm::vec3 p);
 
-// The shading pass's other uses of the finest cascade's geometry volume (shade.comp):
+// The shading pass's other uses of the finest cascade's geometry volume (gi_shade.comp):
 //  * giSunVisibility: the directional light's shadow at a surface point p with normal n,
 //    giTransmittance from p + n s / 2 towards the light, skipping nothing;
 //  * giGeometryColour (view gi-geometry): the geometry cell nearest p (clamped into the volume):
