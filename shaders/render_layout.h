@@ -24,11 +24,18 @@ using uvec4 = glm::uvec4;
 #define PK_MAX_LIGHTS 8
 
 // PkFrameGpu.info.x: what the shading pass writes.
-#define PK_VIEW_SHADED 0u     // albedo / pi x (E + direct) + emission, W/(sr m^2)
-#define PK_VIEW_IRRADIANCE 1u // E, W/m^2
-#define PK_VIEW_PROBES 2u     // surfaces shaded, probe spheres lit by their own SH
-#define PK_VIEW_VALIDITY 3u   // probe spheres only: valid ones lit by their SH, invalid ones red
-#define PK_VIEW_LEAK 4u       // visible share v of the trilinear weight: rgb (1, v, v)
+#define PK_VIEW_SHADED 0u      // albedo / pi x (E + direct) + emission, W/(sr m^2)
+#define PK_VIEW_IRRADIANCE 1u  // E, W/m^2
+#define PK_VIEW_PROBES 2u      // surfaces shaded, probe spheres lit by their own SH
+#define PK_VIEW_VALIDITY 3u    // probe spheres only: valid ones lit by their SH, invalid ones red
+#define PK_VIEW_LEAK 4u        // visible share v of the trilinear weight: rgb (1, v, v)
+#define PK_VIEW_GI 5u          // the dynamic GI cascades' irradiance alone, W/m^2
+#define PK_VIEW_GI_GEOMETRY 6u // the geometry volume: mean albedo x min(1, area / s^2)
+#define PK_VIEW_GI_AO 7u       // the geometry volume's occlusion in front of the surface: grey
+
+// PkFrameGpu.info.w: flags for the dynamic GI's second shading pass (gi_shade.comp).
+#define PK_FRAME_NO_BAKED 1u        // leave the volumes' irradiance out (dynamic GI alone)
+#define PK_FRAME_GI_DIRECTIONAL 2u  // directional lights' direct light is the GI pass's
 
 // PkFrameGpu.environmentInfo.x: what the background pass draws where no geometry is.
 #define PK_ENV_NONE 0u     // nothing (the G-buffer stays cleared: black)
@@ -58,23 +65,39 @@ struct PkLightGpu {
 };
 
 struct PkFrameGpu {
-    mat4 viewProjection;                // bytes   0..63: world -> clip (Vulkan clip space)
-    vec4 eye;                           // bytes  64..79: camera position (m); w = 1
-    uvec4 info;                         // bytes  80..95: x = PK_VIEW_*, y = light count,
-                                        //   z = add direct light (0/1), w = 0
-    uvec4 size;                         // bytes 96..111: x = width, y = height (pixels)
-    PkLightGpu lights[PK_MAX_LIGHTS];   // bytes 112..623
+    mat4 viewProjection;              // bytes   0..63: world -> clip (Vulkan clip space)
+    vec4 eye;                         // bytes  64..79: camera position (m); w = 1
+    uvec4 info;                       // bytes  80..95: x = PK_VIEW_*, y = light count,
+                                      //   z = add direct light (0/1), w = 0
+    uvec4 size;                       // bytes 96..111: x = width, y = height (pixels)
+    PkLightGpu lights[PK_MAX_LIGHTS]; // bytes 112..623
     // The camera's basis scaled to the image plane at distance 1 (runtime::pixelDirection):
-    vec4 cameraRight;                   // bytes 624..639: xyz right x tan(fov / 2) x aspect
-    vec4 cameraUp;                      // bytes 640..655: xyz up x tan(fov / 2)
-    vec4 cameraForward;                 // bytes 656..671: xyz unit view direction
-    vec4 environment;                   // bytes 672..687: rgb constant radiance x intensity
-                                        //   (constant) or the intensity (lat-long), W/(sr m^2);
-                                        //   w = rotation about +Y, radians
-    uvec4 environmentInfo;              // bytes 688..703: x = PK_ENV_*; yzw zero
+    vec4 cameraRight;      // bytes 624..639: xyz right x tan(fov / 2) x aspect
+    vec4 cameraUp;         // bytes 640..655: xyz up x tan(fov / 2)
+    vec4 cameraForward;    // bytes 656..671: xyz unit view direction
+    vec4 environment;      // bytes 672..687: rgb constant radiance x intensity
+                           //   (constant) or the intensity (lat-long), W/(sr m^2);
+                           //   w = rotation about +Y, radians
+    uvec4 environmentInfo; // bytes 688..703: x = PK_ENV_*; yzw zero
+};
+
+// The dynamic GI's shading inputs (gi_shade.comp, binding 5; runtime::GiShadingInputs).
+#define PK_MAX_GI_CASCADES 4
+struct PkGiCascadeGpu {
+    vec4 origin; // xyz world min corner (m); w = cell size (m)
+    uvec4 info;  // x = cells per axis; yzw zero
+};
+struct PkGiGpu {
+    PkGiCascadeGpu cascades[PK_MAX_GI_CASCADES]; // bytes 0..127, finest first
+    uvec4 info;  // bytes 128..143: x = cascades, y = quality (0 L1, 1 L1 + zonal),
+                 //   z = 0, w = shade the directional lights' direct light, shadowed through
+                 //   the finest cascade's geometry volume (0/1)
+    vec4 params; // bytes 144..159: x = fade (cells); yzw zero
 };
 
 #ifdef __cplusplus
+static_assert(offsetof(PkGiGpu, info) == 128);
+static_assert(sizeof(PkGiGpu) == 160);
 static_assert(sizeof(mat4) == 64, "GLM matrices must be tightly packed (column-major)");
 static_assert(offsetof(PkLightGpu, position) == 0);
 static_assert(offsetof(PkLightGpu, direction) == 16);

@@ -33,7 +33,10 @@ vec3 pk_direct_irradiance(vec3 p, vec3 n) {
     for (uint i = 0u; i < pk_frame.info.y; ++i) {
         const PkLightGpu light = pk_frame.lights[i];
         if (light.info.x == PK_LIGHT_DIRECTIONAL) {
-            e += light.intensity.rgb * max(dot(n, -light.direction.xyz), 0.0);
+            // With the dynamic GI's pass, directional lights are shaded there, shadowed.
+            if ((pk_frame.info.w & PK_FRAME_GI_DIRECTIONAL) == 0u) {
+                e += light.intensity.rgb * max(dot(n, -light.direction.xyz), 0.0);
+            }
             continue;
         }
         const vec3 to_point = p - light.position.xyz;
@@ -111,7 +114,10 @@ void main() {
     } else
 #endif
     {
-        vec3 e = pk_irradiance(position, n);
+        // Without baked light (dynamic GI alone) the volumes' irradiance is left out; the
+        // dynamic GI's pass (gi_shade.comp) adds its own after this one.
+        vec3 e = (pk_frame.info.w & PK_FRAME_NO_BAKED) != 0u ? vec3(0.0)
+                                                             : pk_irradiance(position, n);
         if (view == PK_VIEW_IRRADIANCE) {
             color = e;
         } else {

@@ -9,6 +9,8 @@
 #include <glm/geometric.hpp>
 
 #include "parallel.hpp"
+#include "probekit/formats/lpv_transport.hpp"
+#include "probekit/formats/triangle_sampling.hpp"
 #include "rng.hpp"
 #include "sampling.hpp"
 
@@ -22,54 +24,13 @@ const float kSqrtFourPi = float(std::sqrt(4.0 * kPi));
 // Keys the escape-ray streams apart from every other use of the bake seed.
 constexpr uint64_t kEscapeRayKey = 0x4c50565f657363ull;
 
-// Neighbour directions, in the order of LpvTransfer's matrices.
-constexpr std::array<glm::ivec3, 6> kDirections = {glm::ivec3(1, 0, 0), glm::ivec3(-1, 0, 0),
-                                                   glm::ivec3(0, 1, 0), glm::ivec3(0, -1, 0),
-                                                   glm::ivec3(0, 0, 1), glm::ivec3(0, 0, -1)};
-
-// The L1 basis (Y00, Y1-1, Y10, Y11) at unit w.
-std::array<float, 4> basisL1(glm::vec3 w) {
-    return {sh::kY00, sh::kY1 * w.y, sh::kY1 * w.z, sh::kY1 * w.x};
-}
-
-// The five faces a transfer towards each neighbour reaches: direction from the source centre
-// to the face centre, and solid angle (file comment of lpv.hpp).
-struct Face {
-    glm::vec3 direction;
-    float solidAngle;
-};
-using DirectionFaces = std::array<Face, 5>;
-
-std::array<DirectionFaces, 6> makeFaces() {
-    // Far face: a unit square at distance 1.5 cells,
-    // 4 asin(a b / sqrt((a^2 + 4 d^2) (b^2 + 4 d^2))) with a = b = 1, d = 1.5.
-    const double far_solid_angle = 4.0 * std::asin(0.1);
-    // The five faces tile the shared face, which subtends 4 pi / 6 from the source centre.
-    const double side_solid_angle = (4.0 * kPi / 6.0 - far_solid_angle) / 4.0;
-    std::array<DirectionFaces, 6> table{};
-    for (int d = 0; d < 6; ++d) {
-        const glm::dvec3 main(kDirections[d]);
-        table[d][0] = Face{glm::vec3(main), float(far_solid_angle)};
-        int slot = 1;
-        for (int other = 0; other < 3; ++other) {
-            if (kDirections[d][other] != 0) {
-                continue;
-            }
-            for (double side : {0.5, -0.5}) {
-                glm::dvec3 to_centre = main;
-                to_centre[other] = side;
-                table[d][slot++] =
-                    Face{glm::vec3(glm::normalize(to_centre)), float(side_solid_angle)};
-            }
-        }
-    }
-    return table;
-}
-
-const std::array<DirectionFaces, 6>& faces() {
-    static const std::array<DirectionFaces, 6> table = makeFaces();
-    return table;
-}
+// Neighbour directions (in the order of LpvTransfer's matrices), the L1 basis and the five
+// faces of a transfer: formats/lpv_transport.hpp, shared with the runtime's dynamic GI.
+using lpv::basisL1;
+using lpv::Face;
+using lpv::faces;
+using lpv::kBandOneIndex;
+using lpv::kDirections;
 
 // T_d = sum_f keep_f W_f Y(w_f) Y(w_f)^T (file comment of lpv.hpp).
 LpvTransfer::Matrix transferMatrix(int d, const std::array<float, 5>& keep) {
@@ -95,9 +56,6 @@ Sh1Rgb multiply(const LpvTransfer::Matrix& m, const Sh1Rgb& v) {
     }
     return out;
 }
-
-// SH index of the band-1 function along each axis (Y11 = x, Y1-1 = y, Y10 = z).
-constexpr std::array<int, 3> kBandOneIndex = {3, 1, 2};
 
 // The free transfer towards a neighbour along axis a: by the symmetry of its five faces only the
 // diagonal and the pair (0, k), (k, 0) with k = kBandOneIndex[a] are non-zero (the other entries
@@ -251,65 +209,6 @@ glm::vec3 stepInto(const LpvCascadeLayout& layout, const LpvTransfer& transfer,
         }
     }
     return glm::vec3(dropped);
-}
-
-// Deterministic area samples of a triangle clipped to a box: Sutherland-Hodgman against the six
-// planes, the polygon fanned into triangles, each split into m^2 congruent sub-triangles
-// (m = ceil(longest edge / max_edge)), one sample at the centroid of each with its area.
-template <class Emit>
-void sampleTriangleInBox(glm::vec3 a, glm::vec3 b, glm::vec3 c, const grid::Aabb& box,
-                         float max_edge, const Emit& emit) {
-    std::vector<glm::vec3> polygon = {a, b, c};
-    std::vector<glm::vec3> clipped;
-    for (int axis = 0; axis < 3; ++axis) {
-        for (int side = 0; side < 2; ++side) {
-            const float bound = side == 0 ? box.min[axis] : box.max[axis];
-            const float sign = side == 0 ? 1.0f : -1.0f; // inside: sign (p - bound) >= 0
-            clipped.clear();
-            for (size_t i = 0; i < polygon.size(); ++i) {
-                const glm::vec3 p = polygon[i];
-                const glm::vec3 q = polygon[(i + 1) % polygon.size()];
-                const float dp = sign * (p[axis] - bound);
-                const float dq = sign * (q[axis] - bound);
-                if (dp >= 0.0f) {
-                    clipped.push_back(p);
-                }
-                if ((dp >= 0.0f) != (dq >= 0.0f)) {
-                    clipped.push_back(p + (q - p) * (dp / (dp - dq)));
-                }
-            }
-            polygon.swap(clipped);
-            if (polygon.size() < 3) {
-                return;
-            }
-        }
-    }
-    for (size_t k = 1; k + 1 < polygon.size(); ++k) {
-        const glm::vec3 p0 = polygon[0];
-        const glm::vec3 e1 = polygon[k] - p0;
-        const glm::vec3 e2 = polygon[k + 1] - p0;
-        const float area = 0.5f * glm::length(glm::cross(e1, e2));
-        if (!(area > 0.0f)) {
-            continue;
-        }
-        const float longest = std::max({glm::length(e1), glm::length(e2), glm::length(e2 - e1)});
-        const int m = std::max(1, int(std::ceil(longest / max_edge)));
-        const float sub_area = area / float(m * m);
-        const float inv_m = 1.0f / float(m);
-        for (int i = 0; i < m; ++i) {
-            for (int j = 0; i + j < m; ++j) {
-                // Upright sub-triangle (i, j), (i+1, j), (i, j+1), then the inverted one
-                // beside it.
-                const float fi = float(i);
-                const float fj = float(j);
-                emit(p0 + ((fi + 1.0f / 3.0f) * e1 + (fj + 1.0f / 3.0f) * e2) * inv_m, sub_area);
-                if (i + j + 1 < m) {
-                    emit(p0 + ((fi + 2.0f / 3.0f) * e1 + (fj + 2.0f / 3.0f) * e2) * inv_m,
-                         sub_area);
-                }
-            }
-        }
-    }
 }
 
 bool inRegion(glm::vec3 p, const LpvCascadeLayout* region, const LpvCascadeLayout* excluded) {
@@ -604,13 +503,9 @@ std::vector<Sh1Rgb> propagateToRadiance(const LpvCascadeLayout& layout, const Lp
         stepInto(layout, transfer, current, next, &crossing, threads);
         std::swap(current, next);
     }
-    // One-sided irradiance at a cell centre from side +a: light travelling along -a, the mean of
-    // the crossing into the cell (from c + a) and out of it (into c - a), over the face area; at
-    // the border only one of them exists.
+    // One-sided irradiances from the face crossings, then radiance (lpv_transport.hpp).
     const glm::ivec3 n = layout.cells;
     const float inv_area = 1.0f / (layout.cellSize * layout.cellSize);
-    const float band0 = 1.0f / (6.0f * sh::kCosineLobe[0] * sh::kY00);
-    const float band1 = 1.0f / (2.0f * sh::kCosineLobe[1] * sh::kY1);
     std::vector<Sh1Rgb> radiance(layout.cellCount());
     for (int z = 0; z < n.z; ++z) {
         for (int y = 0; y < n.y; ++y) {
@@ -619,28 +514,16 @@ std::vector<Sh1Rgb> propagateToRadiance(const LpvCascadeLayout& layout, const Lp
                 const size_t i = layout.index(cell);
                 std::array<glm::vec3, 6> e{};
                 for (int d = 0; d < 6; ++d) {
-                    // Facing d, light travels along the opposite direction d ^ 1.
-                    const int travel = d ^ 1;
-                    auto crossed = [&](size_t cell_index) {
-                        return glm::vec3(crossing[3 * travel][cell_index],
-                                         crossing[3 * travel + 1][cell_index],
-                                         crossing[3 * travel + 2][cell_index]);
-                    };
-                    const bool from_inside = layout.containsCell(cell + kDirections[d]);
-                    const glm::ivec3 onward = cell - kDirections[d];
-                    if (!layout.containsCell(onward)) {
-                        e[d] = inv_area * crossed(i);
-                    } else if (!from_inside) {
-                        e[d] = inv_area * crossed(layout.index(onward));
-                    } else {
-                        e[d] = 0.5f * inv_area * (crossed(i) + crossed(layout.index(onward)));
-                    }
+                    e[size_t(d)] = lpv::oneSidedIrradiance(
+                        cell, d, inv_area, [&](glm::ivec3 c) { return layout.containsCell(c); },
+                        [&](glm::ivec3 c, int travel) {
+                            const size_t k = layout.index(c);
+                            return glm::vec3(crossing[size_t(3 * travel)][k],
+                                             crossing[size_t(3 * travel + 1)][k],
+                                             crossing[size_t(3 * travel + 2)][k]);
+                        });
                 }
-                Sh1Rgb& r = radiance[i];
-                r.c[0] = band0 * (e[0] + e[1] + e[2] + e[3] + e[4] + e[5]);
-                for (int axis = 0; axis < 3; ++axis) {
-                    r.c[kBandOneIndex[axis]] = band1 * (e[2 * axis] - e[2 * axis + 1]);
-                }
+                radiance[i].c = lpv::radianceFromOneSided(e);
             }
         }
     }

@@ -14,6 +14,7 @@
 #include <glm/geometric.hpp>
 #include <glm/gtc/packing.hpp>
 
+#include "probekit/runtime/dynamic_gi.hpp"
 #include "render_layout.h"
 #include "vk_util.hpp"
 
@@ -49,7 +50,20 @@ static_assert(uint32_t(RenderView::Shaded) == PK_VIEW_SHADED &&
               uint32_t(RenderView::Irradiance) == PK_VIEW_IRRADIANCE &&
               uint32_t(RenderView::Probes) == PK_VIEW_PROBES &&
               uint32_t(RenderView::Validity) == PK_VIEW_VALIDITY &&
-              uint32_t(RenderView::Leak) == PK_VIEW_LEAK);
+              uint32_t(RenderView::Leak) == PK_VIEW_LEAK &&
+              uint32_t(RenderView::GiIrradiance) == PK_VIEW_GI &&
+              uint32_t(RenderView::GiGeometry) == PK_VIEW_GI_GEOMETRY &&
+              uint32_t(RenderView::GiAo) == PK_VIEW_GI_AO);
+static_assert(kMaxGiCascades == PK_MAX_GI_CASCADES);
+
+// gi_shade.comp's bindings: 0 frame uniforms, 1..3 G-buffer position, normal, albedo, 4 the
+// output, 5 the GI uniforms, 6..9 the cascades' radiance, 10 the geometry volume.
+constexpr uint32_t kGiBindings = 11;
+VkDescriptorType giDescriptorType(uint32_t binding) {
+    return binding == 0 || binding == 5 ? VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER
+           : binding <= 4               ? VK_DESCRIPTOR_TYPE_STORAGE_IMAGE
+                                        : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+}
 static_assert(kMaxRenderLights == PK_MAX_LIGHTS);
 
 // Per-instance data of a probe sphere (probe_sphere.vert locations 1 and 2).
@@ -184,6 +198,14 @@ struct Renderer::Impl {
     VkDescriptorSetLayout frameLayout = VK_NULL_HANDLE;   // G-buffer pass: frame uniforms
     VkDescriptorSetLayout shadeLayout = VK_NULL_HANDLE;   // shading: uniforms + G-buffer + output
     VkDescriptorSetLayout textureLayout = VK_NULL_HANDLE; // G-buffer pass: one sampled texture
+    // The dynamic GI's shading pass (gi_shade.comp, after shade.comp): one set of the frame
+    // uniforms, three G-buffer targets, the output, its uniforms, four cascades' radiance and
+    // the geometry volume.
+    VkDescriptorSetLayout giLayout = VK_NULL_HANDLE;
+    VkPipelineLayout giShadePipelineLayout = VK_NULL_HANDLE;
+    VkPipeline giShadePipeline = VK_NULL_HANDLE;
+    VkDescriptorSet giSet = VK_NULL_HANDLE;
+    Buffer giUniforms;
     VkPipelineLayout gbufferPipelineLayout = VK_NULL_HANDLE;
     VkPipelineLayout shadePipelineLayout = VK_NULL_HANDLE;
     VkRenderPass renderPass = VK_NULL_HANDLE;
@@ -242,6 +264,8 @@ struct Renderer::Impl {
                                        const VkPipelineVertexInputStateCreateInfo& input,
                                        bool depth_tested, VkPipeline& pipeline);
     Result<void> createTextureResources();
+    // Points set 2 at the dynamic GI's buffers and fills its uniforms (no frame in flight).
+    Result<void> writeGiSet(const GiShadingInputs& gi, const FrameSettings& settings);
     // Uploads `image` (linear RGBA) as textures[index], creating its descriptor set.
     Result<void> uploadTexture(const RgbaImage& image, size_t index);
     void destroyTexture(Texture& texture);
@@ -270,19 +294,21 @@ Renderer::Impl::~Impl() {
     if (texturePool != VK_NULL_HANDLE) {
         vkDestroyDescriptorPool(d, texturePool, nullptr);
     }
+    destroy(d, giUniforms);
     for (VkPipeline p : {meshPipeline, probePipeline, backgroundPipeline, shadePipeline[0],
                          shadePipeline[1], probeViewsPipeline[0], probeViewsPipeline[1],
-                         fetchOnlyPipeline[0], fetchOnlyPipeline[1]}) {
+                         fetchOnlyPipeline[0], fetchOnlyPipeline[1], giShadePipeline}) {
         if (p != VK_NULL_HANDLE) {
             vkDestroyPipeline(d, p, nullptr);
         }
     }
-    for (VkPipelineLayout l : {gbufferPipelineLayout, shadePipelineLayout}) {
+    for (VkPipelineLayout l : {gbufferPipelineLayout, shadePipelineLayout, giShadePipelineLayout}) {
         if (l != VK_NULL_HANDLE) {
             vkDestroyPipelineLayout(d, l, nullptr);
         }
     }
-    for (VkDescriptorSetLayout l : {volumeLayout, frameLayout, shadeLayout, textureLayout}) {
+    for (VkDescriptorSetLayout l :
+         {volumeLayout, frameLayout, shadeLayout, textureLayout, giLayout}) {
         if (l != VK_NULL_HANDLE) {
             vkDestroyDescriptorSetLayout(d, l, nullptr);
         }
@@ -402,6 +428,7 @@ public:
         Shade,
         ShadeProbeViews,
         ShadeFetchOnly,
+        ShadeGi,
         kCount
     };
 
@@ -421,7 +448,8 @@ public:
             detail::spirv::gbufferVert(),         detail::spirv::probeSphereVert(),
             detail::spirv::gbufferFrag(),         detail::spirv::backgroundVert(),
             detail::spirv::backgroundFrag(),      detail::spirv::shadeComp(),
-            detail::spirv::shadeProbeViewsComp(), detail::spirv::shadeFetchOnlyComp()};
+            detail::spirv::shadeProbeViewsComp(), detail::spirv::shadeFetchOnlyComp(),
+            detail::spirv::shadeGiComp()};
         for (size_t i = 0; i < kCount; ++i) {
             Result<VkShaderModule> module = detail::createShaderModule(m_device, codes[i]);
             if (!module) {
@@ -540,6 +568,9 @@ Result<void> Renderer::Impl::createPipelines() {
                                        pipelines[enabled]));
         }
     }
+    // The GI pass reads no volume: its specialisation constant is unused.
+    PK_TRY(createShadePipeline(device(), modules[ShaderModules::ShadeGi], giShadePipelineLayout,
+                               PK_VISIBILITY_OFF, giShadePipeline));
     return {};
 }
 
@@ -602,6 +633,15 @@ Result<void> Renderer::Impl::createLayouts() {
     pipeline_layout.setLayoutCount = 2;
     pipeline_layout.pSetLayouts = shade_sets;
     PK_VK_TRY(vkCreatePipelineLayout(device(), &pipeline_layout, nullptr, &shadePipelineLayout));
+    // The dynamic GI pass (gi_shade.comp's bindings 0..10).
+    std::array<VkDescriptorSetLayoutBinding, kGiBindings> gi_bindings{};
+    for (uint32_t i = 0; i < kGiBindings; ++i) {
+        gi_bindings[i] = {i, giDescriptorType(i), 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr};
+    }
+    PK_TRY(detail::createDescriptorSetLayout(device(), gi_bindings, giLayout));
+    pipeline_layout.setLayoutCount = 1;
+    pipeline_layout.pSetLayouts = &giLayout;
+    PK_VK_TRY(vkCreatePipelineLayout(device(), &pipeline_layout, nullptr, &giShadePipelineLayout));
     return {};
 }
 
@@ -925,8 +965,19 @@ void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
     frame.cameraForward = glm::vec4(basis.forward, 0.0f);
     frame.environment = environment;
     frame.environmentInfo = glm::uvec4(environmentType, 0u, 0u, 0u);
+    const bool probe_views = settings.view == RenderView::Probes ||
+                             settings.view == RenderView::Validity ||
+                             settings.view == RenderView::Leak;
+    const bool gi = settings.dynamicGi && !settings.fetchOnly && !probe_views;
+    uint32_t flags = 0;
+    if (gi && !settings.bakedLight) {
+        flags |= PK_FRAME_NO_BAKED;
+    }
+    if (gi && settings.giShadowSun) {
+        flags |= PK_FRAME_GI_DIRECTIONAL;
+    }
     frame.info = glm::uvec4(uint32_t(settings.view), uint32_t(settings.lights.size()),
-                            settings.directLight ? 1u : 0u, 0u);
+                            settings.directLight ? 1u : 0u, flags);
     frame.size = glm::uvec4(settings.width, settings.height, 0u, 0u);
     for (size_t i = 0; i < settings.lights.size(); ++i) {
         frame.lights[i] = packLight(settings.lights[i]);
@@ -1006,10 +1057,7 @@ void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
     detail::imageBarrier(cmd, color.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                          VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_TRANSFER_BIT, 0,
                          VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT);
-    // The debug views' variant (shade.comp's PK_PROBE_VIEWS).
-    const bool probe_views = settings.view == RenderView::Probes ||
-                             settings.view == RenderView::Validity ||
-                             settings.view == RenderView::Leak;
+    // The debug views' variant (shade.comp's PK_PROBE_VIEWS): probe_views above.
     // The visibility path only where the set needs it: without, the plain filtered code.
     const size_t visibility = volumes.anyVisibility() ? 1 : 0;
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
@@ -1021,6 +1069,18 @@ void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
                             nullptr);
     vkCmdDispatch(cmd, (settings.width + kShadeGroup - 1) / kShadeGroup,
                   (settings.height + kShadeGroup - 1) / kShadeGroup, 1);
+    if (gi) {
+        // The GI pass reads and rewrites what the shading pass wrote.
+        detail::imageBarrier(cmd, color.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_GENERAL,
+                             VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                             VK_ACCESS_SHADER_WRITE_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                             VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT);
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, giShadePipeline);
+        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, giShadePipelineLayout, 0, 1,
+                                &giSet, 0, nullptr);
+        vkCmdDispatch(cmd, (settings.width + kShadeGroup - 1) / kShadeGroup,
+                      (settings.height + kShadeGroup - 1) / kShadeGroup, 1);
+    }
     if (timed) {
         vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 2);
     }
@@ -1075,11 +1135,12 @@ Result<Renderer> Renderer::create(GpuContext& context) {
                                : PK_VISIBILITY_BRANCH;
     PK_TRY(impl->createPipelines());
 
-    const VkDescriptorPoolSize sizes[2] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 2},
-                                           {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kShadeImages}};
+    const VkDescriptorPoolSize sizes[3] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 4},
+                                           {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kShadeImages + 4},
+                                           {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 5}};
     VkDescriptorPoolCreateInfo pool{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-    pool.maxSets = 2;
-    pool.poolSizeCount = 2;
+    pool.maxSets = 3;
+    pool.poolSizeCount = 3;
     pool.pPoolSizes = sizes;
     PK_VK_TRY(vkCreateDescriptorPool(d, &pool, nullptr, &impl->pool));
     const VkDescriptorSetLayout layouts[2] = {impl->frameLayout, impl->shadeLayout};
@@ -1091,6 +1152,15 @@ Result<Renderer> Renderer::create(GpuContext& context) {
     PK_VK_TRY(vkAllocateDescriptorSets(d, &allocate, sets));
     impl->frameSet = sets[0];
     impl->shadeSet = sets[1];
+    allocate.descriptorSetCount = 1;
+    allocate.pSetLayouts = &impl->giLayout;
+    PK_VK_TRY(vkAllocateDescriptorSets(d, &allocate, &impl->giSet));
+    Result<Buffer> gi_uniforms = detail::createBuffer(context, sizeof(gpu::PkGiGpu),
+                                                      VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
+    if (!gi_uniforms) {
+        return gi_uniforms.error();
+    }
+    impl->giUniforms = gi_uniforms.value();
 
     Result<Buffer> uniforms = detail::createBuffer(
         context, sizeof(gpu::PkFrameGpu),
@@ -1362,6 +1432,51 @@ Result<void> Renderer::setMeshes(std::span<const RenderVertex> vertices,
     return {};
 }
 
+Result<void> Renderer::Impl::writeGiSet(const GiShadingInputs& gi, const FrameSettings& settings) {
+    if (gi.cascades < 1 || gi.cascades > kMaxGiCascades || gi.geometry == VK_NULL_HANDLE) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "renderer: dynamic GI inputs without cascades or geometry");
+    }
+    gpu::PkGiGpu block{};
+    for (uint32_t j = 0; j < gi.cascades; ++j) {
+        const GiCascadePlacement& c = gi.placement[j];
+        block.cascades[j].origin = glm::vec4(c.origin, c.cellSize);
+        block.cascades[j].info = glm::uvec4(c.cells, 0u, 0u, 0u);
+    }
+    block.info = glm::uvec4(gi.cascades, uint32_t(gi.quality), 0u,
+                            settings.directLight && settings.giShadowSun ? 1u : 0u);
+    block.params = glm::vec4(gi.fadeCells, 0.0f, 0.0f, 0.0f);
+    std::memcpy(giUniforms.mapped, &block, sizeof(block));
+    std::array<VkDescriptorBufferInfo, kGiBindings> buffers{};
+    std::array<VkDescriptorImageInfo, kGiBindings> images{};
+    buffers[0] = {frameUniforms.buffer, 0, sizeof(gpu::PkFrameGpu)};
+    images[1] = {VK_NULL_HANDLE, position.view, VK_IMAGE_LAYOUT_GENERAL};
+    images[2] = {VK_NULL_HANDLE, normal.view, VK_IMAGE_LAYOUT_GENERAL};
+    images[3] = {VK_NULL_HANDLE, albedo.view, VK_IMAGE_LAYOUT_GENERAL};
+    images[4] = {VK_NULL_HANDLE, color.view, VK_IMAGE_LAYOUT_GENERAL};
+    buffers[5] = {giUniforms.buffer, 0, sizeof(gpu::PkGiGpu)};
+    for (uint32_t j = 0; j < kMaxGiCascades; ++j) {
+        // Unused bindings point at the finest cascade: every descriptor must be valid.
+        buffers[6 + j] = {gi.radiance[j < gi.cascades ? j : 0], 0, VK_WHOLE_SIZE};
+    }
+    buffers[10] = {gi.geometry, 0, VK_WHOLE_SIZE};
+    std::array<VkWriteDescriptorSet, kGiBindings> writes{};
+    for (uint32_t i = 0; i < kGiBindings; ++i) {
+        writes[i].sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+        writes[i].dstSet = giSet;
+        writes[i].dstBinding = i;
+        writes[i].descriptorCount = 1;
+        writes[i].descriptorType = giDescriptorType(i);
+        if (writes[i].descriptorType == VK_DESCRIPTOR_TYPE_STORAGE_IMAGE) {
+            writes[i].pImageInfo = &images[i];
+        } else {
+            writes[i].pBufferInfo = &buffers[i];
+        }
+    }
+    vkUpdateDescriptorSets(device(), uint32_t(writes.size()), writes.data(), 0, nullptr);
+    return {};
+}
+
 Result<Frame> Renderer::render(GpuVolumeSet& volumes, const FrameSettings& settings) {
     Impl& impl = *m_impl;
     const uint32_t max_size = impl.context->limits().maxImageDimension2D;
@@ -1388,6 +1503,16 @@ Result<Frame> Renderer::render(GpuVolumeSet& volumes, const FrameSettings& setti
     if (impl.width != settings.width || impl.height != settings.height) {
         PK_TRY(impl.context->waitIdle());
         PK_TRY(impl.createTargets(settings.width, settings.height));
+    }
+    const bool gi_view = settings.view == RenderView::GiIrradiance ||
+                         settings.view == RenderView::GiGeometry ||
+                         settings.view == RenderView::GiAo;
+    if (gi_view && !settings.dynamicGi) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "renderer: the dynamic GI views need FrameSettings::dynamicGi");
+    }
+    if (settings.dynamicGi) {
+        PK_TRY(impl.writeGiSet(*settings.dynamicGi, settings));
     }
     uint32_t instance_count = 0;
     impl.probeStats = {};

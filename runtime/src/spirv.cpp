@@ -32,8 +32,33 @@ constexpr uint32_t kShadeProbeViewsComp[] = {
 constexpr uint32_t kShadeFetchOnlyComp[] = {
 #include "shade_fetch_only.comp.inc"
 };
+constexpr uint32_t kShadeGiComp[] = {
+#include "shade_gi.comp.inc"
+};
 constexpr uint32_t kIrradiancePointsComp[] = {
 #include "irradiance_points.comp.inc"
+};
+
+constexpr uint32_t kGiGeometryComp[] = {
+#include "gi_geometry.comp.inc"
+};
+constexpr uint32_t kGiSurfaceComp[] = {
+#include "gi_surface.comp.inc"
+};
+constexpr uint32_t kGiInjectComp[] = {
+#include "gi_inject.comp.inc"
+};
+constexpr uint32_t kGiPropagateComp[] = {
+#include "gi_propagate.comp.inc"
+};
+constexpr uint32_t kGiKeepComp[] = {
+#include "gi_keep.comp.inc"
+};
+constexpr uint32_t kGiReduceComp[] = {
+#include "gi_reduce.comp.inc"
+};
+constexpr uint32_t kGiResolveComp[] = {
+#include "gi_resolve.comp.inc"
 };
 
 } // namespace
@@ -62,8 +87,32 @@ std::span<const uint32_t> shadeProbeViewsComp() {
 std::span<const uint32_t> shadeFetchOnlyComp() {
     return kShadeFetchOnlyComp;
 }
+std::span<const uint32_t> shadeGiComp() {
+    return kShadeGiComp;
+}
 std::span<const uint32_t> irradiancePointsComp() {
     return kIrradiancePointsComp;
+}
+std::span<const uint32_t> giGeometryComp() {
+    return kGiGeometryComp;
+}
+std::span<const uint32_t> giSurfaceComp() {
+    return kGiSurfaceComp;
+}
+std::span<const uint32_t> giInjectComp() {
+    return kGiInjectComp;
+}
+std::span<const uint32_t> giPropagateComp() {
+    return kGiPropagateComp;
+}
+std::span<const uint32_t> giKeepComp() {
+    return kGiKeepComp;
+}
+std::span<const uint32_t> giReduceComp() {
+    return kGiReduceComp;
+}
+std::span<const uint32_t> giResolveComp() {
+    return kGiResolveComp;
 }
 
 } // namespace probekit::runtime::detail::spirv

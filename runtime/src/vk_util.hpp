@@ -84,7 +84,15 @@ std::span<const uint32_t> backgroundFrag();
 std::span<const uint32_t> shadeComp();
 std::span<const uint32_t> shadeProbeViewsComp();
 std::span<const uint32_t> shadeFetchOnlyComp();
+std::span<const uint32_t> shadeGiComp(); // gi_shade.comp
 std::span<const uint32_t> irradiancePointsComp();
+std::span<const uint32_t> giGeometryComp();
+std::span<const uint32_t> giSurfaceComp();
+std::span<const uint32_t> giInjectComp();
+std::span<const uint32_t> giPropagateComp();
+std::span<const uint32_t> giKeepComp(); // gi_propagate.comp with PK_GI_KEEP
+std::span<const uint32_t> giReduceComp();
+std::span<const uint32_t> giResolveComp();
 } // namespace spirv
 
 } // namespace probekit::runtime::detail

@@ -13,7 +13,7 @@ endfunction()
 file(REMOVE_RECURSE ${WORK_DIR})
 set(prefix ${WORK_DIR}/prefix)
 run("cmake --install" ${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${prefix})
-foreach(installed include/probekit/runtime/gpu_volumes.hpp include/probekit/shaders/probe_volume.glsl
+foreach(installed include/probekit/runtime/gpu_volumes.hpp include/probekit/runtime/dynamic_gi.hpp include/probekit/shaders/probe_volume.glsl
                   include/probekit/shaders/probe_volume_layout.h share/probekit/spirv/shade.comp.spv)
     if(NOT EXISTS ${prefix}/${installed})
         message(FATAL_ERROR "the install is missing ${installed}")
@@ -41,4 +41,17 @@ elseif(NOT result EQUAL 0)
     message(FATAL_ERROR "examples/app failed (${result})")
 elseif(NOT EXISTS ${WORK_DIR}/frame.pfm)
     message(FATAL_ERROR "examples/app wrote no image")
+endif()
+
+# The dynamic GI example, on the same volume.
+execute_process(COMMAND ${WORK_DIR}/build/probekit_example_dynamic_gi ${WORK_DIR}/example.pvol
+                        ${WORK_DIR}/dynamic_gi.pfm
+                RESULT_VARIABLE result OUTPUT_VARIABLE out ERROR_VARIABLE err)
+message(STATUS "${out}${err}")
+if(result EQUAL 77)
+    message(STATUS "SKIPPED: no Vulkan device")
+elseif(NOT result EQUAL 0)
+    message(FATAL_ERROR "examples/app dynamic_gi failed (${result})")
+elseif(NOT EXISTS ${WORK_DIR}/dynamic_gi.pfm)
+    message(FATAL_ERROR "examples/app dynamic_gi wrote no image")
 endif()

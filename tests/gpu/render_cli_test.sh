@@ -86,6 +86,32 @@ expect 0 '"visibility":false' -- "$pk" render cornell.gltf dense.pvol -o bn.png 
     --bench 2 --no-visibility
 expect 0 "no-visibility" -- "$pk" render --help
 
+# Dynamic GI: without a volume (the GI alone) along a sun path, one image per frame; on top of
+# a volume; its debug views; --bench's gi_ keys; the errors.
+"$pk" scene courtyard -o courtyard.gltf >/dev/null || exit 1
+expect 0 "wrote gi01.png: frame 1, shaded view; GI [1-9][0-9]* dispatches \(1 cascades\)" -- \
+    "$pk" render courtyard.gltf --dynamic-gi --env 0.3,0.4,0.6 --sun-path 30,50,-60,35 \
+    --frames 3 -o gi%02d.png --size 32,24 --gi-iterations 4
+check "one image per frame" test -s gi00.png -a -s gi01.png -a -s gi02.png
+check "no fourth frame" test ! -e gi03.png
+expect 0 "wrote gib.png: frame 0, irradiance view" -- "$pk" render cornell.gltf volume.pvol \
+    --dynamic-gi -o gib.png --size 32,24 --view irradiance --sun-path 0,60,0,60 \
+    --gi-iterations 4 --gi-quality zonal --gi-cascades 2
+for view in gi-lpv gi-geometry gi-ao; do
+    expect 0 "wrote $view.png: frame 0, $view view" -- "$pk" render courtyard.gltf --dynamic-gi \
+        -o $view.png --size 32,24 --view $view --gi-iterations 4
+done
+expect 0 '"gi_occupancy_ms":.*"gi_inject_ms":.*"gi_propagate_ms":.*"shade_baked_only_ms":.*"shade_ms"|"gi_inject_ms":.*"shade_ms":' -- \
+    "$pk" render cornell.gltf volume.pvol --dynamic-gi -o gb.png --size 32,24 --bench 2 \
+    --sun-path 0,60,0,60 --gi-iterations 4
+expect 1 "dynamicGi|need --dynamic-gi|needs --dynamic-gi|dynamic GI views" -- \
+    "$pk" render cornell.gltf volume.pvol -o x.png --size 8,8 --view gi-ao
+expect 1 "need --dynamic-gi" -- "$pk" render cornell.gltf volume.pvol -o x.png --sun-path 0,1,2,3
+expect 1 "VOLUME is required" -- "$pk" render cornell.gltf -o x.png
+expect 1 "%d or %0Nd" -- "$pk" render courtyard.gltf --dynamic-gi -o "x%s.png" --size 8,8
+check "no output after the GI errors" bash -c '! ls x*.png 2>/dev/null | grep -q .'
+expect 2 "" -- "$pk" render courtyard.gltf --dynamic-gi -o x.png --gi-resolution 48
+
 expect 2 "png or .exr" -- "$pk" render cornell.gltf volume.pvol -o out.jpg
 check "no output for a bad extension" test ! -e out.jpg
 expect 2 "" -- "$pk" render cornell.gltf volume.pvol -o x.png --view nope

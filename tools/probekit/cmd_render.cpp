@@ -26,6 +26,7 @@
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/scene.hpp"
 #include "probekit/formats/pvol.hpp"
+#include "probekit/runtime/dynamic_gi.hpp"
 #include "probekit/runtime/gpu_context.hpp"
 #include "probekit/runtime/gpu_volumes.hpp"
 #include "probekit/runtime/renderer.hpp"
@@ -54,6 +55,16 @@ struct RenderOptions {
     bool directLight = false;
     float normalOffset = 0.0f;
     bool noVisibility = false;
+    // --dynamic-gi and its settings (runtime/include/probekit/runtime/dynamic_gi.hpp).
+    bool dynamicGi = false;
+    std::vector<float> sunPath; // az0, el0, az1, el1 in degrees; empty = the scene's sun
+    int frames = 1;
+    uint32_t giCascades = 1;
+    uint32_t giResolution = 32;
+    float giCell = 0.0f; // 0 = the scene's longest side / (resolution - 2)
+    uint32_t giIterations = 16;
+    uint32_t giBounces = 2;
+    std::string giQuality = "l1";
 };
 
 std::string extensionOf(const std::string& path) {
@@ -407,7 +418,8 @@ Result<runtime::FrameSettings> frameSettings(const RenderOptions& o, const baker
         return camera.error();
     }
     settings.camera = camera.value();
-    const std::string views[] = {"shaded", "irradiance", "probes", "validity", "leak"};
+    const std::string views[] = {"shaded", "irradiance", "probes",      "validity",
+                                 "leak",   "gi-lpv",     "gi-geometry", "gi-ao"};
     settings.view = runtime::RenderView(std::find(std::begin(views), std::end(views), o.view) -
                                         std::begin(views));
     settings.directLight = o.directLight;
@@ -627,6 +639,12 @@ int renderAndWrite(const RenderOptions& o, const runtime::GpuContext& gpu,
 }
 
 int runRender(const RenderOptions& o) {
+    if (o.volumes.empty()) {
+        return fail("render: VOLUME is required (without --dynamic-gi)");
+    }
+    if (!o.sunPath.empty() || o.frames != 1) {
+        return fail("render: --sun-path and --frames need --dynamic-gi");
+    }
     // A bad -o fails before any work.
     if (Result<std::filesystem::path> target = resolveOutputPath(o.output); !target) {
         return fail(target.error().message);
@@ -677,6 +695,315 @@ int runRender(const RenderOptions& o) {
                           bench);
 }
 
+// ---- --dynamic-gi ----
+
+// -o for frame f: one %d or %0Nd in the path is replaced by f (no other % is accepted, so the
+// path is never a format string).
+Result<std::string> framePath(const std::string& pattern, int f) {
+    const size_t at = pattern.find('%');
+    if (at == std::string::npos) {
+        return pattern;
+    }
+    size_t i = at + 1;
+    size_t width = 0;
+    while (i < pattern.size() && std::isdigit(static_cast<unsigned char>(pattern[i]))) {
+        width = width * 10 + size_t(pattern[i] - '0');
+        ++i;
+    }
+    if (i >= pattern.size() || pattern[i] != 'd' || width > 9 ||
+        pattern.find('%', i + 1) != std::string::npos) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "-o " + pattern +
+                             ": the frame number is written as %d or %0Nd (N <= 9), "
+                             "once; no other % is allowed");
+    }
+    std::string number = std::to_string(f);
+    if (number.size() < width) {
+        number.insert(0, width - number.size(), '0');
+    }
+    return pattern.substr(0, at) + number + pattern.substr(i + 1);
+}
+
+// The direction the sun's light travels at frame f of --frames along --sun-path (azimuth 0:
+// the sun stands in +z; 90: in +x; elevation above the horizon), linear in the angles.
+glm::vec3 sunTravel(const RenderOptions& o, int f) {
+    const float t = o.frames > 1 ? float(f) / float(o.frames - 1) : 0.0f;
+    const float az = glm::radians(o.sunPath[0] + t * (o.sunPath[2] - o.sunPath[0]));
+    const float el = glm::radians(o.sunPath[1] + t * (o.sunPath[3] - o.sunPath[1]));
+    return -glm::vec3(std::sin(az) * std::cos(el), std::sin(el), std::cos(az) * std::cos(el));
+}
+
+// The environment's radiance as L2 SH (4096 Fibonacci directions), the dynamic GI's sky.
+sh::ShRgb skySh(const Environment& environment) {
+    constexpr int kDirections = 4096;
+    sh::ShRgb out;
+    const float weight = 4.0f * float(M_PI) / float(kDirections);
+    for (int i = 0; i < kDirections; ++i) {
+        const glm::vec3 w = sh::fibonacciDirection(i, kDirections);
+        const glm::vec3 radiance = environment.radiance(w);
+        const sh::Coeffs y = sh::evalBasis(w);
+        for (int k = 0; k < sh::kMaxCoefficients; ++k) {
+            out.rgb[size_t(k)] += (weight * y[size_t(k)]) * radiance;
+        }
+    }
+    return out;
+}
+
+// Without a .pvol the renderer still takes a volume set: one 2^3 volume of zeros over the scene,
+// whose irradiance the dynamic-GI shading leaves out (FrameSettings::bakedLight false).
+Result<Volume> placeholderVolume(const baker::Scene& scene) {
+    VolumeDesc desc;
+    desc.name = "no-volume";
+    grid::Aabb box = scene.bounds;
+    box.max = glm::max(box.max, box.min + glm::vec3(1e-3f));
+    desc.grid = grid::GridLayout(box, glm::uvec3(2), grid::PositionMode::Corner);
+    desc.shOrder = sh::Order::L1;
+    const std::vector<sh::ShRgb> zeros(8);
+    return makeVolume(desc, zeros);
+}
+
+double medianOf(std::vector<double> v) {
+    return v.empty() ? std::numeric_limits<double>::quiet_NaN() : median(std::move(v));
+}
+
+int runRenderDynamicGi(const RenderOptions& o) {
+    Result<std::string> first_path = framePath(o.output, 0);
+    if (!first_path) {
+        return fail(first_path.error().message);
+    }
+    if (Result<std::filesystem::path> target = resolveOutputPath(first_path.value()); !target) {
+        return fail(target.error().message);
+    }
+    Result<baker::Scene> loaded = loadScene(o);
+    if (!loaded) {
+        return fail(loaded.error().message);
+    }
+    const baker::Scene& scene = loaded.value();
+    if (!scene.hasGeometry()) {
+        return fail(o.scene + ": no triangles; dynamic GI relights geometry");
+    }
+    const bool baked = !o.volumes.empty();
+    std::vector<Volume> volumes;
+    BakeMetadata metadata;
+    if (baked) {
+        Result<PvolFile> file = loadVolumes(o);
+        if (!file) {
+            return fail(file.error().message);
+        }
+        volumes = std::move(file.value().volumes);
+        metadata = file.value().metadata;
+    } else {
+        Result<Volume> placeholder = placeholderVolume(scene);
+        if (!placeholder) {
+            return fail(placeholder.error().message);
+        }
+        volumes.push_back(std::move(placeholder.value()));
+    }
+    Result<std::unique_ptr<runtime::GpuContext>> context = createContext();
+    if (!context) {
+        return fail(context.error().message);
+    }
+    runtime::GpuContext& gpu = *context.value();
+    Result<runtime::GpuVolumeSet> set = uploadVolumes(gpu, volumes, o);
+    if (!set) {
+        return fail(set.error().message);
+    }
+    Result<Environment> environment = chooseEnvironment(o, metadata);
+    if (!environment) {
+        return fail(environment.error().message);
+    }
+    Result<runtime::Renderer> renderer = createRenderer(gpu, scene, environment.value());
+    if (!renderer) {
+        return fail(renderer.error().message);
+    }
+    Result<runtime::FrameSettings> frame_settings = frameSettings(o, scene, volumes);
+    if (!frame_settings) {
+        return fail(frame_settings.error().message);
+    }
+    runtime::FrameSettings settings = frame_settings.value();
+
+    // The dynamic lights: the scene's directional light (made for --sun-path when there is
+    // none); without a volume every punctual light, since nothing else lights the scene.
+    std::vector<PunctualLight> lights;
+    for (const PunctualLight& light : scene.lights) {
+        if ((!baked || light.type == LightType::Directional) &&
+            lights.size() < runtime::kMaxGiLights) {
+            lights.push_back(light);
+        }
+    }
+    auto sun = std::find_if(lights.begin(), lights.end(), [](const PunctualLight& l) {
+        return l.type == LightType::Directional;
+    });
+    if (sun == lights.end() && !o.sunPath.empty()) {
+        PunctualLight made;
+        made.type = LightType::Directional;
+        made.intensity = glm::vec3(3.0f);
+        made.name = "sun (--sun-path)";
+        lights.insert(lights.begin(), made);
+        sun = lights.begin();
+    }
+    const bool sky = !environment.value().isBlack();
+    if (lights.empty() && !sky) {
+        printError("render", "warning: " + o.scene +
+                                 ": no dynamic light (no directional light, no --sun-path) and "
+                                 "no sky: the dynamic GI stays black");
+    }
+
+    runtime::DynamicGiSettings gi_settings;
+    gi_settings.cascades = o.giCascades;
+    gi_settings.resolution = o.giResolution;
+    const glm::vec3 size = scene.bounds.max - scene.bounds.min;
+    const float longest = std::max({size.x, size.y, size.z});
+    gi_settings.cellSize =
+        o.giCell > 0.0f ? o.giCell
+                        : longest / float(o.giResolution - 2) / float(1u << (o.giCascades - 1));
+    gi_settings.iterations = o.giIterations;
+    gi_settings.bounces = o.giBounces;
+    gi_settings.quality =
+        o.giQuality == "zonal" ? runtime::GiQuality::L1Zonal : runtime::GiQuality::L1;
+    // The default cell holds the scene in the coarsest cascade: centred on the scene. With
+    // --gi-cell the cascades follow the camera, centred ahead of it (the library's default).
+    if (o.giCell <= 0.0f) {
+        gi_settings.aheadFraction = 0.0f;
+    }
+    Result<runtime::DynamicGi> gi = runtime::DynamicGi::create(gpu, gi_settings);
+    if (!gi) {
+        return fail(gi.error().message);
+    }
+    const FlatScene flat = flatten(scene);
+    if (auto r = gi.value().setGeometry(flat.vertices, flat.indices); !r) {
+        return fail(r.error().message);
+    }
+    if (sky) {
+        gi.value().setSky(skySh(environment.value()));
+    }
+    // The camera places the cascades; by default they are centred on the scene (one cascade
+    // holds it), otherwise ahead of the camera.
+    const glm::vec3 forward = glm::normalize(settings.camera.target - settings.camera.eye);
+    gi.value().setCamera(o.giCell > 0.0f ? settings.camera.eye : scene.bounds.center(), forward);
+
+    settings.dynamicGi = nullptr;
+    settings.bakedLight = baked;
+    settings.directLight = true;
+    for (int f = 0; f < o.frames; ++f) {
+        if (!o.sunPath.empty()) {
+            sun->direction = sunTravel(o, f);
+        }
+        if (auto r = gi.value().setLights(lights); !r) {
+            return fail(r.error().message);
+        }
+        Result<runtime::GiUpdateStats> stats = gi.value().update(uint64_t(f));
+        if (!stats) {
+            return fail(stats.error().message);
+        }
+        const runtime::GiShadingInputs inputs = gi.value().shadingInputs();
+        settings.dynamicGi = &inputs;
+        settings.lights = lights;
+        Result<runtime::Frame> frame = renderer.value().render(set.value(), settings);
+        if (!frame) {
+            return fail(frame.error().message);
+        }
+        Result<std::string> path = framePath(o.output, f);
+        std::string error;
+        const Display display = chooseDisplay(o, frame.value());
+        if (!writeImage(path.value(), frame.value(), o, display, error)) {
+            return fail(error);
+        }
+        const runtime::GiTimings t = gi.value().timings();
+        if (o.bench == 0) {
+            std::printf("wrote %s: frame %d, %s view; GI %u dispatches (%u cascades), "
+                        "occupancy %.2f ms, inject %.2f ms, propagate %.2f ms, resolve %.2f ms; "
+                        "shading %.2f ms\n",
+                        terminalText(path.value()).c_str(), f, o.view.c_str(),
+                        stats.value().dispatches, stats.value().cascadesUpdated, t.occupancyMs,
+                        t.injectMs, t.propagateMs, t.resolveMs, frame.value().timings.shadeMs);
+        }
+    }
+    if (o.bench == 0) {
+        return kExitOk;
+    }
+
+    // --bench N: N updates, each with the sun turned by twice the threshold so every one is a
+    // full relight (the geometry volume is rebuilt once, by the first: it is timed apart), then
+    // N frames shaded with the GI and N of the baked-only pass.
+    std::vector<double> occupancy, inject, propagate, resolve, shade, shade_baked;
+    PunctualLight* moving = sun != lights.end() ? &*sun : nullptr;
+    for (int i = 0; i < o.bench + kWarmupFrames; ++i) {
+        if (moving) {
+            const float angle = 2.0f * gi_settings.angleThreshold * float(i % 2 == 0 ? 1 : -1);
+            const glm::vec3 d = moving->direction;
+            moving->direction = glm::vec3(d.x * std::cos(angle) - d.z * std::sin(angle), d.y,
+                                          d.x * std::sin(angle) + d.z * std::cos(angle));
+            if (auto r = gi.value().setLights(lights); !r) {
+                return fail(r.error().message);
+            }
+        } else if (auto r = gi.value().setGeometry(flat.vertices, flat.indices); !r) {
+            return fail(r.error().message);
+        }
+        Result<runtime::GiUpdateStats> stats = gi.value().update(uint64_t(o.frames + i));
+        if (!stats) {
+            return fail(stats.error().message);
+        }
+        const runtime::GiTimings t = gi.value().timings();
+        if (i >= kWarmupFrames) {
+            if (stats.value().geometryRebuilt) {
+                occupancy.push_back(t.occupancyMs);
+            }
+            inject.push_back(t.injectMs);
+            propagate.push_back(t.propagateMs);
+            resolve.push_back(t.resolveMs);
+        }
+    }
+    // The geometry volume alone: rebuilt by a geometry change.
+    for (int i = 0; i < std::min(o.bench, 8) && occupancy.empty(); ++i) {
+        if (auto r = gi.value().setGeometry(flat.vertices, flat.indices); !r) {
+            return fail(r.error().message);
+        }
+        Result<runtime::GiUpdateStats> stats =
+            gi.value().update(uint64_t(o.frames + o.bench + kWarmupFrames + i));
+        if (!stats) {
+            return fail(stats.error().message);
+        }
+        occupancy.push_back(gi.value().timings().occupancyMs);
+    }
+    const runtime::GiShadingInputs inputs = gi.value().shadingInputs();
+    for (int i = 0; i < o.bench + kWarmupFrames; ++i) {
+        for (int pass = 0; pass < (baked ? 2 : 1); ++pass) {
+            runtime::FrameSettings s = settings;
+            s.readbackColor = false;
+            s.dynamicGi = pass == 0 ? &inputs : nullptr;
+            Result<runtime::Frame> frame = renderer.value().render(set.value(), s);
+            if (!frame) {
+                return fail(frame.error().message);
+            }
+            if (i >= kWarmupFrames) {
+                (pass == 0 ? shade : shade_baked).push_back(frame.value().timings.shadeMs);
+            }
+        }
+    }
+    nlohmann::json bench = {
+        {"device", gpu.deviceInfo().name},
+        {"width", settings.width},
+        {"height", settings.height},
+        {"view", o.view},
+        {"frames", o.bench},
+        {"gi_cascades", gi_settings.cascades},
+        {"gi_resolution", gi_settings.resolution},
+        {"gi_iterations", gi_settings.iterations},
+        {"gi_bounces", gi_settings.bounces},
+        {"gi_occupancy_ms", medianOf(occupancy)},
+        {"gi_inject_ms", medianOf(inject)},
+        {"gi_propagate_ms", medianOf(propagate)},
+        {"gi_resolve_ms", medianOf(resolve)},
+        {"gi_relight_ms", medianOf(inject) + medianOf(propagate) + medianOf(resolve)},
+        {"shade_ms", medianOf(shade)}};
+    if (baked) {
+        bench["shade_baked_only_ms"] = medianOf(shade_baked);
+    }
+    std::printf("%s\n", jsonText(bench).c_str());
+    return kExitOk;
+}
+
 } // namespace
 
 void addRenderCommand(CLI::App& app, Command& selected) {
@@ -684,7 +1011,8 @@ void addRenderCommand(CLI::App& app, Command& selected) {
     CLI::App* cmd = app.add_subcommand(
         "render", "Render a glTF scene lit by a .pvol with the Vulkan runtime (headless)");
     cmd->add_option("SCENE", o->scene, "glTF scene (.gltf or .glb)")->required();
-    cmd->add_option("VOLUME", o->volumes, "the .pvol lighting it")->required();
+    cmd->add_option("VOLUME", o->volumes,
+                    "the .pvol lighting it (optional with --dynamic-gi: dynamic GI alone)");
     cmd->add_option("-o,--output", o->output, "image to write: .png (8-bit sRGB) or .exr (float)")
         ->required()
         ->check([](const std::string& path) {
@@ -717,8 +1045,11 @@ void addRenderCommand(CLI::App& app, Command& selected) {
                     "level: 0 blue, 1 green, 2 yellow, 3 magenta), validity (invalid probes "
                     "red), leak (the visible share v of the interpolation weight as (1, v, v): "
                     "white where no probe is hidden, red where all are; white everywhere "
-                    "without visibility data)")
-        ->check(CLI::IsMember({"shaded", "irradiance", "probes", "validity", "leak"}))
+                    "without visibility data); with --dynamic-gi also gi-lpv (the cascades' "
+                    "irradiance alone, W/m^2), gi-geometry (the geometry volume's albedo x "
+                    "coverage) and gi-ao (its openness in front of the surface)")
+        ->check(CLI::IsMember({"shaded", "irradiance", "probes", "validity", "leak", "gi-lpv",
+                               "gi-geometry", "gi-ao"}))
         ->capture_default_str();
     cmd->add_option("--exposure", o->exposure,
                     "stops added to the exposure: PNG scales by 2^(auto EV + EV) before the ACES "
@@ -747,7 +1078,46 @@ void addRenderCommand(CLI::App& app, Command& selected) {
                     "metres along the normal to move each shading point before sampling "
                     "(against self-leaking; 0 matches probekit sample)")
         ->capture_default_str();
-    cmd->callback([o, &selected] { selected = [o] { return runRender(*o); }; });
+    cmd->add_flag("--dynamic-gi", o->dynamicGi,
+                  "relight with the runtime's dynamic GI (light propagation cascades in Vulkan "
+                  "compute) from the scene's directional light and --env's sky, added to the "
+                  "volume's light (the bake must not hold the sun) or alone without a volume; "
+                  "the sun's direct light is shaded with its shadow marched through the GI's "
+                  "geometry volume");
+    cmd->add_option("--sun-path", o->sunPath,
+                    "with --dynamic-gi: az0,el0,az1,el1 in degrees; the sun (the scene's "
+                    "directional light, or a 3 W/m^2 white one) moves from the first azimuth "
+                    "and elevation to the second over --frames frames (azimuth 0 = the sun in "
+                    "+z, 90 = in +x)")
+        ->delimiter(',')
+        ->expected(4);
+    cmd->add_option("--frames", o->frames,
+                    "frames to render (one image each: put %d or %03d in -o)")
+        ->check(CLI::Range(1, 100000))
+        ->capture_default_str();
+    cmd->add_option("--gi-cascades", o->giCascades, "dynamic GI cascades, 1..4")
+        ->check(CLI::Range(1u, 4u))
+        ->capture_default_str();
+    cmd->add_option("--gi-resolution", o->giResolution, "cells per cascade axis, 32 or 64")
+        ->check(CLI::IsMember({32u, 64u}))
+        ->capture_default_str();
+    cmd->add_option("--gi-cell", o->giCell,
+                    "finest cell size in metres (default: the scene's longest side / "
+                    "(resolution - 2), so one cascade holds the scene)")
+        ->check(CLI::PositiveNumber);
+    cmd->add_option("--gi-iterations", o->giIterations, "propagation steps per bounce, 1..256")
+        ->check(CLI::Range(1u, 256u))
+        ->capture_default_str();
+    cmd->add_option("--gi-bounces", o->giBounces, "surface bounces, 1..4")
+        ->check(CLI::Range(1u, 4u))
+        ->capture_default_str();
+    cmd->add_option("--gi-quality", o->giQuality,
+                    "l1, or zonal (a zonal band 2 hallucinated from L1)")
+        ->check(CLI::IsMember({"l1", "zonal"}))
+        ->capture_default_str();
+    cmd->callback([o, &selected] {
+        selected = [o] { return o->dynamicGi ? runRenderDynamicGi(*o) : runRender(*o); };
+    });
 }
 
 } // namespace probekit::cli

@@ -44,6 +44,8 @@
 
 namespace probekit::runtime {
 
+struct GiShadingInputs; // dynamic_gi.hpp
+
 // One mesh vertex, world space. The normal is interpolated across the triangle per pixel
 // (smooth shading; for flat shading give each triangle its own three vertices with the face
 // normal); it need not be unit length, and which side it points to does not matter (the G-buffer
@@ -114,6 +116,11 @@ enum class RenderView : uint32_t {
                     // rgb = (1, v, v): white where no interpolation tap is hidden (v = 1, also
                     // everywhere for volumes without visibility), red where every tap is
                     // (v = 0, plain trilinear interpolation would leak light through a wall)
+    // Dynamic GI debug views (FrameSettings::dynamicGi required):
+    GiIrradiance = 5, // the cascades' irradiance alone, W/m^2
+    GiGeometry = 6,   // the geometry volume at the surface: mean albedo x min(1, area / s^2)
+    GiAo = 7,         // the geometry volume's openness half a cell in front of the surface:
+                      // 1 - the blocking along the six axes, averaged (grey)
 };
 
 constexpr size_t kMaxRenderLights = 8;
@@ -138,6 +145,14 @@ struct FrameSettings {
     // Benchmark variant: the shading pass performs only pk_irradiance's texture fetches
     // (pk_fetch_only); the image is meaningless, the timing is the floor of the real pass.
     bool fetchOnly = false;
+    // Dynamic GI (dynamic_gi.hpp; the object must outlive the render call): its cascades'
+    // irradiance is added to the volumes' (bakedLight true) or replaces it (false), and, with
+    // directLight and giShadowSun, the directional lights' direct light is shadowed by marching
+    // the finest cascade's geometry volume (gi_twin.hpp, giSunVisibility). The probes, validity
+    // and leak views ignore it.
+    const GiShadingInputs* dynamicGi = nullptr;
+    bool bakedLight = true;
+    bool giShadowSun = true;
     bool readbackColor = true;    // fill Frame::color
     bool readbackGBuffer = false; // fill Frame::position and Frame::normal
 };
