@@ -268,6 +268,7 @@ struct DynamicGi::Impl {
     Buffer indices;
     uint32_t vertexCount = 0;
     uint32_t triangleCount = 0;
+    uint64_t cascadeBytes = 0; // every cascade's buffers (gpuBytes)
     uint64_t geometryVersion = 1;
     // Bumped by setTuning when the transport changes (iterations, bounces, weight).
     uint64_t tuningVersion = 1;
@@ -394,6 +395,7 @@ Result<void> DynamicGi::Impl::createCascade(GiCascadeState& c) {
             return r.error();
         }
         b = r.value();
+        cascadeBytes += bytes;
         return {};
     };
     PK_TRY(make(c.geometry, geometry_cells * sizeof(GiGeometryCell)));
@@ -861,6 +863,10 @@ GiTimings DynamicGi::timings() const {
         impl.timingsRead = true;
     }
     return impl.cachedTimings;
+}
+
+uint64_t DynamicGi::gpuBytes() const {
+    return m_impl->cascadeBytes;
 }
 
 GiShadingInputs DynamicGi::shadingInputs() const {

@@ -233,6 +233,13 @@ TEST_F(DynamicGiTest, Resolution64UpdatesCleanly) {
     Result<std::vector<float>> radiance = gi.readRadiance(0);
     ASSERT_TRUE(radiance) << radiance.error().message;
     ASSERT_EQ(radiance.value().size(), size_t(12) * 64 * 64 * 64);
+    // Its buffers (gpuBytes): 65^3 geometry cells x (68 + 64) B, two fields, the pass and the
+    // radiance (12 floats per cell each), crossings (18), keep factors (30), and 2 vec4 per
+    // 64-cell workgroup: 130.7 MiB.
+    const uint64_t cells = 64ull * 64 * 64;
+    const uint64_t geometry = 65ull * 65 * 65;
+    EXPECT_EQ(gi.gpuBytes(),
+              geometry * (68 + 64) + cells * 4 * (4 * 12 + 18 + 30) + 2 * (cells / 64) * 16 + 16);
     float peak = 0.0f;
     for (const float v : radiance.value()) {
         ASSERT_TRUE(std::isfinite(v));

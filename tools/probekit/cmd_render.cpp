@@ -991,6 +991,7 @@ int runRenderDynamicGi(const RenderOptions& o) {
         {"gi_resolution", gi_settings.resolution},
         {"gi_iterations", gi_settings.iterations},
         {"gi_bounces", gi_settings.bounces},
+        {"gi_gpu_mib", double(gi.value().gpuBytes()) / (1024.0 * 1024.0)},
         {"gi_occupancy_ms", medianOf(occupancy)},
         {"gi_inject_ms", medianOf(inject)},
         {"gi_propagate_ms", medianOf(propagate)},

@@ -141,6 +141,9 @@ public:
     Result<GiUpdateStats> update(uint64_t frame);
 
     GiTimings timings() const;
+    // Bytes of GPU memory the cascades' buffers hold (all float32 and int32: the twin's layouts;
+    // README, "Dynamic GI").
+    uint64_t gpuBytes() const;
     GiShadingInputs shadingInputs() const;
     const DynamicGiSettings& settings() const;
     std::vector<GiCascadePlacement> placements() const;
