@@ -463,15 +463,6 @@ namespace {
 
 // What every phase of one bake shares: its inputs, the tracer, the thread count and the
 // counters the probe threads update.
-ProbeChunkStats& ProbeChunkStats::operator+=(const ProbeChunkStats& o) {
-    rays += o.rays;
-    cut += o.cut;
-    samples += o.samples;
-    over += o.over;
-    most = std::max(most, o.most);
-    return *this;
-}
-
 struct BakeRun {
     const Scene& scene;
     const BakeConfig& config;

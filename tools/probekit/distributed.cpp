@@ -11,6 +11,10 @@
 #include <thread>
 #include <vector>
 
+// The C API only: without these, mpi.h in C++ pulls in the removed C++ bindings, whose library
+// MPI::MPI_C does not link.
+#define OMPI_SKIP_MPICXX 1
+#define MPICH_SKIP_MPICXX 1
 #include <mpi.h>
 #endif
 

@@ -296,7 +296,14 @@ struct ProbeChunkStats {
     uint64_t samples = 0; // directions of the path-traced parts
     uint64_t over = 0;    // adaptive: valid probes that stopped above the noise target
     uint32_t most = 0;
-    ProbeChunkStats& operator+=(const ProbeChunkStats& o);
+    ProbeChunkStats& operator+=(const ProbeChunkStats& o) {
+        rays += o.rays;
+        cut += o.cut;
+        samples += o.samples;
+        over += o.over;
+        most = most > o.most ? most : o.most;
+        return *this;
+    }
 };
 
 // A bake spread over several processes (README, "Distributed bakes"): every process runs the
