@@ -69,6 +69,13 @@ same adaptive "thin.gltf --resolution 8,4,4 --noise-target 0.1 --samples 64" 2 1
 # Only rank 0 writes: one output, no other rank's temporaries.
 check "no temporary files left" bash -c '! ls -A . | grep -q "\.tmp\."'
 
+# An error every rank meets (a missing scene) ends the job at once, naming the file.
+out=$(timeout 120 "${mpi[@]}" -np 2 "$pk" bake missing.gltf -o missing.pvol 2>&1)
+rc=$?
+check "a missing scene fails the job (exit $rc)" test "$rc" -ne 0 -a "$rc" -ne 124
+check "the error names the file" grep -q "missing.gltf" <<<"$out"
+check "no file after the error" test ! -e missing.pvol
+
 # A rank killed mid-bake: the job ends with an error naming the lost process, and no file.
 "${mpi[@]}" -np 2 "$pk" bake thin.gltf --samples 2048 --resolution 16,8,8 -o killed.pvol \
     --threads 1 -q >killed.log 2>&1 &
