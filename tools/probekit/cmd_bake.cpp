@@ -523,8 +523,9 @@ int runBakeProcess(const BakeOptionsCli& all, const DistributedBake* job) {
         o.report.clear();
         o.verify = false;
     }
-    // A bad -o fails before the bake, not after it.
-    if (Result<std::filesystem::path> target = resolveOutputPath(o.output); !target) {
+    // A bad -o fails before the bake, not after it (on rank 0, the only one that writes it:
+    // other nodes need not see its directory).
+    if (Result<std::filesystem::path> target = resolveOutputPath(o.output); rank0 && !target) {
         return fail(target.error());
     }
     Result<baker::BakeConfig> config = configFromOptions(o);

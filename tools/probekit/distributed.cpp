@@ -86,6 +86,18 @@ void waitFor(MPI_Request& request) {
     }
 }
 
+// Rank 0's bytes to every rank, in pieces whose count fits MPI's int (a batch of 20 million
+// probes is 2 GiB of SH).
+void broadcast(void* data, size_t bytes) {
+    constexpr size_t kPiece = size_t(1) << 30;
+    for (size_t offset = 0; offset < bytes; offset += kPiece) {
+        MPI_Request request;
+        MPI_Ibcast(static_cast<char*>(data) + offset, int(std::min(kPiece, bytes - offset)),
+                   MPI_BYTE, 0, MPI_COMM_WORLD, &request);
+        waitFor(request);
+    }
+}
+
 class MpiJob final : public DistributedBake, public baker::ProbeDistributor {
 public:
     MpiJob(int rank, int size) : m_rank(rank), m_size(size) {}
@@ -111,14 +123,9 @@ public:
             m_rank == 0 ? coordinate(count, chunk, sh, valid, compute) : work(sh, valid, compute);
         // Every rank continues with every result (dilation, visibility, the next bricked
         // level all read them), so rank 0 broadcasts the batch.
-        std::vector<MPI_Request> requests(3);
-        MPI_Ibcast(sh.data(), int(sh.size() * sizeof(sh::ShRgb)), MPI_BYTE, 0, MPI_COMM_WORLD,
-                   &requests[0]);
-        MPI_Ibcast(valid.data(), int(valid.size()), MPI_BYTE, 0, MPI_COMM_WORLD, &requests[1]);
-        MPI_Ibcast(&total, int(sizeof total), MPI_BYTE, 0, MPI_COMM_WORLD, &requests[2]);
-        for (MPI_Request& r : requests) {
-            waitFor(r);
-        }
+        broadcast(sh.data(), sh.size() * sizeof(sh::ShRgb));
+        broadcast(valid.data(), valid.size());
+        broadcast(&total, sizeof total);
         if (m_rank == 0) {
             m_traffic.broadcastBytes += uint64_t(m_size - 1) * (sh.size() * sizeof(sh::ShRgb) +
                                                                 valid.size() + sizeof total);
