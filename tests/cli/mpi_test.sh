@@ -76,14 +76,15 @@ check "a missing scene fails the job (exit $rc)" test "$rc" -ne 0 -a "$rc" -ne 1
 check "the error names the file" grep -q "missing.gltf" <<<"$out"
 check "no file after the error" test ! -e missing.pvol
 
-# A rank killed mid-bake: the job ends with an error naming the lost process, and no file.
-"${mpi[@]}" -np 2 "$pk" bake thin.gltf --samples 2048 --resolution 16,8,8 -o killed.pvol \
+# A rank killed mid-bake (a bake of about 20 s of one core, killed 1 s in): the job ends with
+# an error naming the lost process, and no file.
+"${mpi[@]}" -np 2 "$pk" bake thin.gltf --samples 16384 --resolution 16,8,8 -o killed.pvol \
     --threads 1 -q >killed.log 2>&1 &
 launcher=$!
 victim=""
 for _ in $(seq 1 200); do
     # [.]: the pattern must not match the command line of a shell that runs pgrep.
-    for p in $(pgrep -f "probekit bake thin[.]gltf --samples 2048" || true); do
+    for p in $(pgrep -f "probekit bake thin[.]gltf --samples 16384" || true); do
         if tr '\0' '\n' <"/proc/$p/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=1"; then
             victim=$p
         fi
@@ -103,7 +104,7 @@ else
     check "the error names the lost process" grep -qiE "rank 1|process.*(killed|exited)" killed.log
     check "no file after a killed rank" test ! -e killed.pvol
     check "no temporary file after a killed rank" bash -c '! ls -A . | grep -q "killed.pvol.tmp"'
-    check "no process of the job left" bash -c '! pgrep -f "probekit bake thin[.]gltf --samples 2048" >/dev/null'
+    check "no process of the job left" bash -c '! pgrep -f "probekit bake thin[.]gltf --samples 16384" >/dev/null'
 fi
 
 echo "MPI bake: $passed passed, $failed failed"
