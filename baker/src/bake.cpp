@@ -5,6 +5,7 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <mutex>
 #include <numbers>
 #include <optional>
 #include <span>
@@ -478,6 +479,7 @@ struct BakeRun {
     std::atomic<uint64_t> samplesTotal{0}; // directions the path-traced parts took
     std::atomic<uint32_t> samplesMax{0};
     std::atomic<uint64_t> overTarget{0}; // adaptive: valid probes that stopped above the target
+    std::mutex statsMutex;               // a batch's chunks add their ProbeChunkStats under it
 
     double elapsedSeconds() const {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -604,8 +606,9 @@ private:
     std::optional<VplProbeIntegrator> m_vpl;
 };
 
-// Bakes any set of positions on the parallel loop. Each probe's result depends only on
-// (seed, volume, id), so scheduling never changes the output.
+// Bakes any set of positions on the parallel loop, or across processes through the
+// distributor (each chunk on the parallel loop of the process that takes it). Each probe's
+// result depends only on (seed, volume, id), so scheduling never changes the output.
 void bakeBatch(BakeRun& run, const VolumeIntegrator& integrator,
                std::span<const glm::vec3> positions, std::span<const uint64_t> ids,
                std::span<sh::ShRgb> out_sh, std::span<uint8_t> out_valid) {
@@ -613,41 +616,49 @@ void bakeBatch(BakeRun& run, const VolumeIntegrator& integrator,
     run.totalProbes.fetch_add(count);
     // Small chunks keep both threads busy to the end.
     constexpr size_t kChunk = 4;
-    const auto body = [&](size_t begin, size_t end) {
-        uint64_t rays = 0;
-        uint64_t cut = 0;
-        uint64_t samples = 0;
-        uint32_t most = 0;
-        uint64_t over = 0;
+    const auto probes = [&](size_t begin, size_t end, ProbeChunkStats& total) {
+        ProbeChunkStats stats;
         const float target = integrator.noiseTarget();
         for (size_t i = begin; i < end; ++i) {
-            const ProbeSample s = integrator.bakeProbe(positions[i], ids[i], cut);
+            const ProbeSample s = integrator.bakeProbe(positions[i], ids[i], stats.cut);
             out_sh[i] = s.sh;
             out_valid[i] = probeValidity(s, run.config.backfaceThreshold);
-            rays += s.rays;
-            samples += s.samples;
-            most = std::max(most, s.samples);
-            over += target > 0.0f && s.noise > target && out_valid[i] == kProbeValid ? 1 : 0;
-        }
-        run.rays.fetch_add(rays);
-        run.cutTotal.fetch_add(cut);
-        run.samplesTotal.fetch_add(samples);
-        run.overTarget.fetch_add(over);
-        for (uint32_t seen = run.samplesMax.load(); most > seen;) {
-            if (run.samplesMax.compare_exchange_weak(seen, most)) {
-                break;
-            }
+            stats.rays += s.rays;
+            stats.samples += s.samples;
+            stats.most = std::max(stats.most, s.samples);
+            stats.over += target > 0.0f && s.noise > target && out_valid[i] == kProbeValid ? 1 : 0;
         }
         run.probesDone.fetch_add(end - begin);
+        const std::lock_guard<std::mutex> lock(run.statsMutex);
+        total += stats;
     };
-    if (run.options.progress) {
-        // The calling thread only reports, so callbacks never run on a loop thread
-        // (BakeOptions::progress).
-        parallelForWatched(count, run.threads, kChunk, body, std::chrono::milliseconds(100),
-                           [&] { run.report(); });
+    // [begin, end) on this process's threads.
+    const auto local = [&](size_t begin, size_t end) {
+        ProbeChunkStats total;
+        const auto body = [&](size_t b, size_t e) { probes(begin + b, begin + e, total); };
+        if (run.options.progress) {
+            // The calling thread only reports, so callbacks never run on a loop thread
+            // (BakeOptions::progress).
+            parallelForWatched(end - begin, run.threads, kChunk, body,
+                               std::chrono::milliseconds(100), [&] { run.report(); });
+        } else {
+            parallelFor(end - begin, run.threads, kChunk, body);
+        }
+        return total;
+    };
+    ProbeChunkStats stats;
+    if (run.options.distributor) {
+        const uint64_t done_before = run.probesDone.load();
+        stats = run.options.distributor->run(count, out_sh, out_valid, local);
+        run.probesDone.store(done_before + count);
     } else {
-        parallelFor(count, run.threads, kChunk, body);
+        stats = local(0, count);
     }
+    run.rays.fetch_add(stats.rays);
+    run.cutTotal.fetch_add(stats.cut);
+    run.samplesTotal.fetch_add(stats.samples);
+    run.overTarget.fetch_add(stats.over);
+    run.samplesMax.store(std::max(run.samplesMax.load(), stats.most));
 }
 
 BrickedSettings brickedSettings(const BakeRun& run, const VolumeConfig& vc, uint32_t volume_index) {

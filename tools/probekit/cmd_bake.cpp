@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "distributed.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/bench_rays.hpp"
 #include "probekit/baker/generators.hpp"
@@ -467,6 +468,9 @@ Result<baker::BakeResult> bakeWithProgress(const BakeOptionsCli& o, const baker:
     baker::BakeOptions options;
     options.threads = o.threads;
     options.allowUnlit = o.allowUnlit;
+    if (DistributedBake* job = currentJob()) {
+        options.distributor = job->distributor();
+    }
     const bool show_progress = !o.quiet && isatty(STDERR_FILENO);
     if (show_progress) {
         options.progress = printProgress;
@@ -478,9 +482,50 @@ Result<baker::BakeResult> bakeWithProgress(const BakeOptionsCli& o, const baker:
     return result;
 }
 
+// The distributed bake's line and report fields (rank 0; README, "Distributed bakes").
+void addTraffic(const DistributedBake& job, nlohmann::json& report, bool print) {
+    const DistributedTraffic t = job.traffic();
+    const double probes = t.probes > 0 ? double(t.probes) : 1.0;
+    report["processes"] = job.size();
+    report["mpi_chunks"] = t.chunks;
+    report["mpi_result_bytes_per_probe"] = double(t.resultBytes) / probes;
+    report["mpi_broadcast_bytes_per_probe"] = double(t.broadcastBytes) / probes;
+    report["mpi_control_bytes_per_probe"] = double(t.controlBytes) / probes;
+    if (print) {
+        std::printf("  distributed over %d processes: %llu chunks; per probe %.1f B of results "
+                    "to rank 0, %.1f B broadcast back, %.1f B of requests\n",
+                    job.size(), static_cast<unsigned long long>(t.chunks),
+                    double(t.resultBytes) / probes, double(t.broadcastBytes) / probes,
+                    double(t.controlBytes) / probes);
+    }
+}
+
+int runBakeProcess(const BakeOptionsCli& all, const DistributedBake* job);
+
 int runBake(const BakeOptionsCli& o) {
-    // A bad -o fails before the bake, not after it.
-    if (Result<std::filesystem::path> target = resolveOutputPath(o.output); !target) {
+    const DistributedBake* job = currentJob();
+    const int code = runBakeProcess(o, job);
+    // A process that fails alone must not leave the others waiting for it: end the job.
+    if (code != kExitOk && job && job->size() > 1) {
+        currentJob()->abort("bake failed (exit " + std::to_string(code) +
+                            "); ending every process of the job");
+    }
+    return code;
+}
+
+// One process's part: every process bakes (its share of the probes goes through the job's
+// distributor); rank 0 alone prints, writes the file and the report and verifies.
+int runBakeProcess(const BakeOptionsCli& all, const DistributedBake* job) {
+    const bool rank0 = !job || job->rank() == 0;
+    BakeOptionsCli o = all;
+    if (!rank0) {
+        o.quiet = true;
+        o.report.clear();
+        o.verify = false;
+    }
+    // A bad -o fails before the bake, not after it (on rank 0, the only one that writes it:
+    // other nodes need not see its directory).
+    if (Result<std::filesystem::path> target = resolveOutputPath(o.output); rank0 && !target) {
         return fail(target.error());
     }
     Result<baker::BakeConfig> config = configFromOptions(o);
@@ -521,16 +566,21 @@ int runBake(const BakeOptionsCli& o) {
     // repeats these in its warnings, which are not printed twice.
     const std::vector<std::string>& notes = plan.value().notes;
     for (const std::string& n : notes) {
-        printError("bake", "warning: " + n);
+        if (rank0) {
+            printError("bake", "warning: " + n);
+        }
     }
     Result<baker::BakeResult> result = bakeWithProgress(o, scene.value(), config.value());
     if (!result) {
         return fail(result.error());
     }
     for (const std::string& w : result.value().warnings) {
-        if (std::find(notes.begin(), notes.end(), w) == notes.end()) {
+        if (rank0 && std::find(notes.begin(), notes.end(), w) == notes.end()) {
             printError("bake", "warning: " + w);
         }
+    }
+    if (!rank0) {
+        return kExitOk;
     }
     if (auto w = writePvol(o.output, result.value().file); !w) {
         return fail(w.error());
@@ -538,6 +588,9 @@ int runBake(const BakeOptionsCli& o) {
     nlohmann::json report = makeReport(o, config.value(), result.value(), choice);
     if (!o.quiet) {
         printSummary(o, config.value(), result.value(), choice);
+    }
+    if (job && job->size() > 1) {
+        addTraffic(*job, report, !o.quiet);
     }
     if (o.verify) {
         if (auto v = runVerify(o, scene.value(), config.value(), result.value().file, report); !v) {

@@ -7,6 +7,7 @@
 #include <signal.h>
 
 #include "commands.hpp"
+#include "distributed.hpp"
 #include "probekit/formats/file_io.hpp"
 #include "terminal_text.hpp"
 
@@ -42,6 +43,10 @@ void installSignalHandlers() {
 } // namespace
 
 int main(int argc, char** argv) {
+    // Under an MPI launcher, join the job first (MPI may rewrite argv); MPI ends with `job`.
+    const std::unique_ptr<probekit::cli::DistributedBake> job =
+        probekit::cli::DistributedBake::join(argc, argv);
+    probekit::cli::setCurrentJob(job.get());
     installSignalHandlers();
     CLI::App app{"probekit " PROBEKIT_VERSION_STRING
                  ": offline light-probe-volume baker and runtime sampler"};

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <functional>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -287,8 +288,44 @@ struct BakeProgress {
     double elapsedSeconds = 0.0;
 };
 
+// What baking a run of probes added to the bake's statistics: sums, and the most directions
+// one probe took.
+struct ProbeChunkStats {
+    uint64_t rays = 0;
+    uint64_t cut = 0;     // method vpl: clusters gathered
+    uint64_t samples = 0; // directions of the path-traced parts
+    uint64_t over = 0;    // adaptive: valid probes that stopped above the noise target
+    uint32_t most = 0;
+    ProbeChunkStats& operator+=(const ProbeChunkStats& o) {
+        rays += o.rays;
+        cut += o.cut;
+        samples += o.samples;
+        over += o.over;
+        most = most > o.most ? most : o.most;
+        return *this;
+    }
+};
+
+// A bake spread over several processes (README, "Distributed bakes"): every process runs the
+// same bake with the same inputs; each batch of probes it meets (a dense volume, a bricked
+// volume's level, ...) goes through run(), which has compute(begin, end) called for every
+// chunk of [0, count) on exactly one of the processes and returns once every process holds
+// every probe's SH and validity in `sh` and `valid` (compute writes its range of them) and the
+// batch's statistics summed over all chunks. Every probe's result depends only on (seed,
+// volume, probe), so the bake and its file are the same bytes as one process's. The
+// implementation handles a lost process itself (the probekit tool's ends the job).
+class ProbeDistributor {
+public:
+    using Compute = std::function<ProbeChunkStats(size_t begin, size_t end)>;
+    virtual ~ProbeDistributor() = default;
+    virtual ProbeChunkStats run(size_t count, std::span<sh::ShRgb> sh, std::span<uint8_t> valid,
+                                const Compute& compute) = 0;
+};
+
 struct BakeOptions {
-    uint32_t threads = 0; // 0 = all hardware threads
+    uint32_t threads = 0; // 0 = all hardware threads (of this process)
+    // Probes baked across processes (ProbeDistributor); null: this process alone.
+    ProbeDistributor* distributor = nullptr;
     // Called from the calling thread about every 100 ms and once at the end.
     std::function<void(const BakeProgress&)> progress;
     // A scene that emits no light (checkSceneLit, scene_summary.hpp) bakes to zeros by
