@@ -11,6 +11,7 @@
 #include <optional>
 
 #include <glm/geometric.hpp>
+#include <glm/vec3.hpp>
 
 #include "irradiance_error.hpp"
 #include "rng.hpp"
@@ -80,7 +81,7 @@ ProbeSample PathIntegrator::bakeProbe(glm::vec3 position, uint64_t seed, uint32_
 void PathIntegrator::traceSample(glm::vec3 position, glm::vec3 dir, uint64_t rng_key, uint32_t n,
                                  sh::ShRgb& sh, PathStats& stats) const {
     Rng rng(rng_key);
-    const glm::vec3 radiance = incidentRadiance(position, dir, rng, stats);
+    const glm::vec3 radiance = incidentRadiance(position, dir, kProbeDirectionPdf, rng, stats);
     probeDirectLight(position, 1.0f / float(n), rng, sh, stats);
     sh::addSample(sh, m_order, dir, radiance, kFourPi / float(n));
 }
@@ -196,19 +197,19 @@ ProbeSample PathIntegrator::bakeAdaptive(glm::vec3 position, uint64_t probe_key,
     return result;
 }
 
-glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, Rng& rng,
-                                           PathStats& stats) const {
+glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, float dir_pdf,
+                                           Rng& rng, PathStats& stats) const {
     std::optional<Hit> hit = m_tracer.intersect(origin, dir);
     ++stats.rays;
     if (!hit) {
         if (m_environmentBlack) {
             return glm::vec3(0.0f);
         }
-        // The probe also samples the environment directly (probeDirectLight).
-        const float mis_weight =
-            m_lights.hasEnvironmentSampling()
-                ? powerHeuristic(kProbeDirectionPdf, m_lights.environmentPdf(dir))
-                : 1.0f;
+        // The probe also samples the environment directly (probeDirectLight), as a surface
+        // point does (directLight).
+        const float mis_weight = m_lights.hasEnvironmentSampling()
+                                     ? powerHeuristic(dir_pdf, m_lights.environmentPdf(dir))
+                                     : 1.0f;
         return m_scene.environment.radiance(dir) * mis_weight;
     }
     stats.primaryBackFace = hit->backFace;
@@ -218,8 +219,8 @@ glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, Rng&
     glm::vec3 radiance(0.0f);
     glm::vec3 throughput(1.0f);
     glm::vec3 previous_position = origin;
-    // pdf of the direction that reached `hit`: the probe's directions are uniform on the sphere.
-    float continuation_pdf = kProbeDirectionPdf;
+    // pdf of the direction that reached `hit`.
+    float continuation_pdf = dir_pdf;
     for (uint32_t vertex = 0;;) {
         const glm::vec3 position = m_tracer.surfacePoint(hit->triangle, hit->bary);
         const Material& material = m_scene.materials[m_scene.triangleMaterial[hit->triangle]];
@@ -272,6 +273,41 @@ glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, Rng&
         previous_position = position;
     }
     return radiance;
+}
+
+PathIntegrator::SurfaceEstimate PathIntegrator::surfaceIrradiance(glm::vec3 position,
+                                                                  glm::vec3 geometric_normal,
+                                                                  glm::vec3 normal,
+                                                                  uint32_t samples,
+                                                                  uint64_t key) const {
+    const ScopedFloatMode float_mode;
+    const auto sobol_seed = uint32_t(key ^ (key >> 32));
+    const glm::vec3 offset_origin = RayTracer::offsetOrigin(position, geometric_normal, normal);
+    SurfaceEstimate result;
+    // Welford's running mean and sum of squared deviations, in double: a pixel may take many
+    // thousand samples of very different size (a direct hit on a small emitter).
+    glm::dvec3 mean(0.0), m2(0.0);
+    for (uint32_t i = 0; i < samples; ++i) {
+        Rng rng(hashKeys(key, i));
+        PathStats stats;
+        const glm::vec3 dir = cosineDirection(normal, scrambledSobol2d(i, sobol_seed));
+        const float cos_theta = glm::dot(normal, dir);
+        glm::vec3 e = directLight(position, offset_origin, normal, rng, stats);
+        if (cos_theta > 0.0f) {
+            // Cosine sampling: L cos / pdf = pi L.
+            e += std::numbers::pi_v<float> * incidentRadiance(offset_origin, dir, cos_theta * kInvPi, rng, stats);
+        }
+        result.rays += stats.rays;
+        const glm::dvec3 x(e);
+        const glm::dvec3 delta = x - mean;
+        mean += delta / double(i + 1);
+        m2 += delta * (x - mean);
+    }
+    result.irradiance = glm::vec3(mean);
+    if (samples > 1) {
+        result.varianceOfMean = glm::vec3(m2 / (double(samples - 1) * double(samples)));
+    }
+    return result;
 }
 
 std::optional<PathIntegrator::EmitterSampleFrom>

@@ -133,6 +133,21 @@ public:
     ProbeSample bakeProbe(glm::vec3 position, uint64_t seed, uint32_t volume_index,
                           uint64_t probe_index, const sh::ShRgb* known = nullptr) const;
 
+    // Irradiance at a surface point, the per-pixel reference (surface_reference.hpp): E at
+    // `position` for the unit shading normal `normal` (on the side of `geometric_normal` the
+    // receiver faces), estimated with `samples` cosine-distributed directions (a scrambled
+    // Sobol set keyed by `key`) and next-event estimation at the point itself, exactly as at a
+    // path vertex with albedo 1: E_i = directLight + pi x L(cosine direction). Returns the mean
+    // and the variance of the mean per channel (the sample variance / samples: an upper bound
+    // for the stratified set).
+    struct SurfaceEstimate {
+        glm::vec3 irradiance{0.0f};   // W/m^2
+        glm::vec3 varianceOfMean{0.0f}; // (W/m^2)^2
+        uint64_t rays = 0;
+    };
+    SurfaceEstimate surfaceIrradiance(glm::vec3 position, glm::vec3 geometric_normal,
+                                      glm::vec3 normal, uint32_t samples, uint64_t key) const;
+
     const PathSettings& settings() const { return m_settings; }
 
 private:
@@ -153,7 +168,10 @@ private:
                      PathStats& stats) const;
 
     // Radiance arriving at `origin` from direction `dir` (unit), estimated with one path.
-    glm::vec3 incidentRadiance(glm::vec3 origin, glm::vec3 dir, Rng& rng, PathStats& stats) const;
+    // `dir_pdf` is the solid-angle pdf `dir` was drawn with (the probe's uniform sphere, or a
+    // surface's cosine lobe): the MIS weight of an emitter or environment it reaches directly.
+    glm::vec3 incidentRadiance(glm::vec3 origin, glm::vec3 dir, float dir_pdf, Rng& rng,
+                               PathStats& stats) const;
 
     // One emissive-triangle sample seen from `position`: direction, emitted radiance, solid-angle
     // pdf and the shadow-ray target (the emitter point moved off its surface). Nothing when the

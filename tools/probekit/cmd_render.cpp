@@ -22,6 +22,7 @@
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
+#include "camera_options.hpp"
 #include "commands.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/scene.hpp"
@@ -43,13 +44,10 @@ struct RenderOptions {
     std::string scene;
     std::string volumes;
     std::string output;
-    std::vector<float> camera; // eye x,y,z, target x,y,z; empty = frame the scene
-    float fovDeg = 40.0f;
-    std::vector<uint32_t> size{640, 480};
+    CameraOptions framing; // --camera, --camera-from, --fov, --size
     std::string view = "shaded";
     float exposure = 0.0f;      // stops, added to the automatic exposure
     bool fixedExposure = false; // --fixed-exposure: 2^exposure alone
-    std::string cameraFrom = "+z";
     std::optional<std::string> env; // R,G,B | FILE | none; unset = the bake's environment
     int bench = 0;
     bool directLight = false;
@@ -361,36 +359,6 @@ Result<runtime::Renderer> createRenderer(runtime::GpuContext& gpu, const baker::
     return renderer;
 }
 
-// --camera's eye and target, or (without it) the framed box seen from --camera-from's side
-// (+z: glTF assets face +Z).
-Result<runtime::Camera> chooseCamera(const RenderOptions& o, const grid::Aabb& framed,
-                                     float aspect) {
-    if (o.camera.empty()) {
-        const glm::vec3 axis = o.cameraFrom[1] == 'x'   ? glm::vec3(1, 0, 0)
-                               : o.cameraFrom[1] == 'y' ? glm::vec3(0, 1, 0)
-                                                        : glm::vec3(0, 0, 1);
-        return runtime::frameBounds(framed, o.fovDeg, aspect,
-                                    o.cameraFrom[0] == '-' ? -axis : axis);
-    }
-    runtime::Camera camera;
-    camera.eye = glm::vec3(o.camera[0], o.camera[1], o.camera[2]);
-    camera.target = glm::vec3(o.camera[3], o.camera[4], o.camera[5]);
-    camera.verticalFovDeg = o.fovDeg;
-    const glm::vec3 forward = camera.target - camera.eye;
-    if (!(glm::length(forward) > 0.0f)) {
-        return makeError(ErrorCode::InvalidArgument, "--camera: the eye and the target coincide");
-    }
-    // Looking straight up or down: +Y cannot be "up", so -Z is.
-    if (glm::length(glm::cross(glm::normalize(forward), glm::vec3(0, 1, 0))) < 1e-4f) {
-        camera.up = glm::vec3(0.0f, 0.0f, -1.0f);
-    }
-    const float reach = glm::length(forward) + glm::length(framed.size()) +
-                        glm::length(camera.eye - framed.center());
-    camera.nearPlane = std::max(1e-4f, 1e-3f * reach);
-    camera.farPlane = 2.0f * reach + 1.0f;
-    return camera;
-}
-
 // The scene's punctual lights for --direct-light, as many as the renderer takes.
 std::vector<PunctualLight> directLights(const RenderOptions& o, const baker::Scene& scene) {
     std::vector<PunctualLight> lights;
@@ -410,10 +378,10 @@ std::vector<PunctualLight> directLights(const RenderOptions& o, const baker::Sce
 Result<runtime::FrameSettings> frameSettings(const RenderOptions& o, const baker::Scene& scene,
                                              const std::vector<Volume>& volumes) {
     runtime::FrameSettings settings;
-    settings.width = o.size[0];
-    settings.height = o.size[1];
+    settings.width = o.framing.size[0];
+    settings.height = o.framing.size[1];
     const float aspect = float(settings.width) / float(settings.height);
-    Result<runtime::Camera> camera = chooseCamera(o, framedBox(scene, volumes), aspect);
+    Result<runtime::Camera> camera = chooseCamera(o.framing, framedBox(scene, volumes), aspect);
     if (!camera) {
         return camera.error();
     }
@@ -1021,25 +989,7 @@ void addRenderCommand(CLI::App& app, Command& selected) {
             return ext == ".png" || ext == ".exr" ? std::string()
                                                   : "the output must end in .png or .exr";
         });
-    cmd->add_option("--camera", o->camera,
-                    "eye_x,eye_y,eye_z,at_x,at_y,at_z in metres (default: frame the scene from "
-                    "the --camera-from side)")
-        ->delimiter(',')
-        ->expected(6);
-    cmd->add_option("--camera-from", o->cameraFrom,
-                    "without --camera: the side of the scene's box the default camera frames it "
-                    "from, looking back at its centre (+z: glTF assets face +Z, so their front "
-                    "and text read unmirrored; the bundled Cornell box opens towards -z)")
-        ->check(CLI::IsMember({"+x", "-x", "+y", "-y", "+z", "-z"}))
-        ->capture_default_str();
-    cmd->add_option("--fov", o->fovDeg, "vertical field of view, degrees")
-        ->check(CLI::Range(1.0f, 170.0f))
-        ->capture_default_str();
-    cmd->add_option("--size", o->size, "image width,height in pixels")
-        ->delimiter(',')
-        ->expected(2)
-        ->check(CLI::Range(1u, 16384u))
-        ->capture_default_str();
+    addCameraOptions(cmd, o->framing);
     cmd->add_option("--view", o->view,
                     "shaded (albedo/pi x E + emission), irradiance (E, W/m^2), probes (spheres "
                     "lit by their own SH; for bricked volumes flat spheres coloured by brick "

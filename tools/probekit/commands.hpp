@@ -38,5 +38,6 @@ void addSceneCommand(CLI::App& app, Command& selected);
 void addBenchRaysCommand(CLI::App& app, Command& selected);
 void addBenchCommand(CLI::App& app, Command& selected);
 void addBenchNoiseCommand(CLI::App& app, Command& selected);
+void addSurfaceCommands(CLI::App& app, Command& selected);
 
 } // namespace probekit::cli

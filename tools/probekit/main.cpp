@@ -65,6 +65,7 @@ int main(int argc, char** argv) {
     probekit::cli::addDiffCommand(app, selected);
     probekit::cli::addBenchCommand(app, selected);
     probekit::cli::addBenchNoiseCommand(app, selected);
+    probekit::cli::addSurfaceCommands(app, selected);
 
     std::string command = "(command line)";
     // No exception may end the process with SIGABRT: one that escapes a command is a bug,
