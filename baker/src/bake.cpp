@@ -740,6 +740,59 @@ Result<Volume> bakeBrickedVolume(BakeRun& run, const VolumeDesc& desc, const Vol
     return checkedVolume(run.scene, makeVolume(b.desc, b.probes, b.validity, b.visibility));
 }
 
+// Relocation (visibility.hpp, relocationTarget): every invalid probe of a dense volume that
+// has free space within one cell is baked again there; those the bake finds valid there replace
+// it. Returns the moves (zero where a probe stays in place).
+std::vector<glm::vec3> relocateInvalidProbes(BakeRun& run, const VolumeDesc& desc,
+                                             std::span<const glm::vec3> positions,
+                                             std::span<const uint64_t> ids,
+                                             const ProbeBatchFn& bake_batch,
+                                             std::vector<sh::ShRgb>& probes,
+                                             std::vector<uint8_t>& validity) {
+    std::vector<glm::vec3> moves(positions.size(), glm::vec3(0.0f));
+    std::vector<size_t> invalid;
+    for (size_t i = 0; i < validity.size(); ++i) {
+        if (validity[i] == kProbeInvalid) {
+            invalid.push_back(i);
+        }
+    }
+    if (invalid.empty()) {
+        return moves;
+    }
+    const glm::vec3 spacing = desc.grid.spacing();
+    const float cell = std::min(spacing.x, std::min(spacing.y, spacing.z));
+    std::vector<std::optional<glm::vec3>> targets(invalid.size());
+    parallelFor(invalid.size(), run.threads, 4, [&](size_t begin, size_t end) {
+        const ScopedFloatMode float_mode;
+        for (size_t k = begin; k < end; ++k) {
+            targets[k] = relocationTarget(run.tracer, positions[invalid[k]], cell, cell,
+                                          run.config.backfaceThreshold);
+        }
+    });
+    std::vector<size_t> moved;
+    std::vector<glm::vec3> new_positions;
+    std::vector<uint64_t> new_ids;
+    for (size_t k = 0; k < invalid.size(); ++k) {
+        if (targets[k]) {
+            moved.push_back(invalid[k]);
+            new_positions.push_back(*targets[k]);
+            new_ids.push_back(ids[invalid[k]]);
+        }
+    }
+    std::vector<sh::ShRgb> new_sh(moved.size());
+    std::vector<uint8_t> new_valid(moved.size(), kProbeValid);
+    bake_batch(new_positions, new_ids, new_sh, new_valid);
+    for (size_t k = 0; k < moved.size(); ++k) {
+        if (new_valid[k] == kProbeValid) {
+            const size_t i = moved[k];
+            probes[i] = new_sh[k];
+            validity[i] = kProbeValid;
+            moves[i] = new_positions[k] - positions[i];
+        }
+    }
+    return moves;
+}
+
 Result<Volume> bakeDenseVolume(BakeRun& run, const VolumeDesc& desc, const ProbeBatchFn& bake_batch,
                                BakeResult& result) {
     const size_t count = desc.grid.probeCount();
@@ -753,6 +806,13 @@ Result<Volume> bakeDenseVolume(BakeRun& run, const VolumeDesc& desc, const Probe
     std::vector<uint8_t> validity(count, kProbeValid);
     bake_batch(positions, ids, probes, validity);
 
+    std::vector<glm::vec3> moves;
+    if (run.config.relocate) {
+        moves = relocateInvalidProbes(run, desc, positions, ids, bake_batch, probes, validity);
+        result.stats.relocatedProbes +=
+            uint64_t(std::count_if(moves.begin(), moves.end(),
+                                   [](glm::vec3 m) { return m != glm::vec3(0.0f); }));
+    }
     const uint64_t invalid = uint64_t(std::count(validity.begin(), validity.end(), 0));
     result.stats.invalidProbes += invalid;
     if (run.config.dilate && invalid > 0) {
@@ -765,7 +825,7 @@ Result<Volume> bakeDenseVolume(BakeRun& run, const VolumeDesc& desc, const Probe
     // Visibility from the validity before dilation: dilated probes stay hidden.
     std::vector<uint8_t> vis;
     if (run.config.visibility) {
-        vis = traceVolumeVisibility(run.tracer, desc, validity, run.threads);
+        vis = traceVolumeVisibility(run.tracer, desc, validity, run.threads, moves);
         run.rays.fetch_add(kVisibilityRaysPerProbe * count);
     }
     return checkedVolume(run.scene, makeVolume(desc, probes, validity, vis));

@@ -589,6 +589,8 @@ const std::vector<Field<BakeConfig>>& validityFields() {
         field("dilate", &BakeConfig::dilate, flag(), "", "fill invalid probes from valid ones"),
         field("nudge", &BakeConfig::nudge, flag(), "",
               "bricked: bake invalid box-face probes again just inside the box"),
+        field("relocate", &BakeConfig::relocate, flag(), "",
+              "dense: bake probes inside geometry at the nearest free point within a cell"),
         field("visibility", &BakeConfig::visibility, flag(), "",
               "store per-probe visibility so interpolation does not leak through walls"),
     };

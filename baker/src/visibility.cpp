@@ -7,6 +7,7 @@
 
 #include "parallel.hpp"
 #include "probekit/formats/brick.hpp"
+#include "probekit/formats/sh.hpp"
 
 namespace probekit::baker {
 
@@ -59,7 +60,8 @@ traceProbeVisibility(const RayTracer& tracer, glm::vec3 world_position, glm::vec
 }
 
 std::vector<uint8_t> traceVolumeVisibility(const RayTracer& tracer, const VolumeDesc& desc,
-                                           std::span<const uint8_t> validity, uint32_t threads) {
+                                           std::span<const uint8_t> validity, uint32_t threads,
+                                           std::span<const glm::vec3> moves) {
     const size_t count = desc.probeCount();
     const grid::GridLayout& grid = desc.grid;
     // Lattice position and cell size of probe i.
@@ -91,13 +93,59 @@ std::vector<uint8_t> traceVolumeVisibility(const RayTracer& tracer, const Volume
             }
             glm::vec3 local, spacing;
             probe_at(i, local, spacing);
-            const auto bytes =
+            auto bytes =
                 traceProbeVisibility(tracer, grid.frame().toWorld(local), spacing, grid.frame());
+            if (!moves.empty() && moves[i] != glm::vec3(0.0f)) {
+                const glm::vec3 move = grid.frame().directionToLocal(moves[i]);
+                for (int axis = 0; axis < 3; ++axis) {
+                    if (move[axis] < 0.0f) {
+                        bytes[2 * axis] = 0; // +axis points away from the move
+                    } else if (move[axis] > 0.0f) {
+                        bytes[2 * axis + 1] = 0;
+                    }
+                }
+            }
             std::copy(bytes.begin(), bytes.end(),
                       out.begin() + std::ptrdiff_t(i * visibility::kBytesPerProbe));
         }
     });
     return out;
+}
+
+std::optional<glm::vec3> relocationTarget(const RayTracer& tracer, glm::vec3 p,
+                                          float max_distance, float margin_scale,
+                                          float backface_threshold) {
+    struct Exit {
+        float t;
+        int direction;
+    };
+    std::array<Exit, kRelocationDirections> exits;
+    int found = 0;
+    for (int k = 0; k < kRelocationDirections; ++k) {
+        const glm::vec3 dir = sh::fibonacciDirection(k, kRelocationDirections);
+        const std::optional<Hit> hit = tracer.intersect(p, dir, max_distance);
+        if (hit && hit->backFace) {
+            exits[size_t(found++)] = Exit{hit->t, k};
+        }
+    }
+    std::sort(exits.begin(), exits.begin() + found, [](const Exit& a, const Exit& b) {
+        return a.t < b.t || (a.t == b.t && a.direction < b.direction);
+    });
+    for (int c = 0; c < std::min(found, kRelocationCandidates); ++c) {
+        const glm::vec3 dir = sh::fibonacciDirection(exits[size_t(c)].direction,
+                                                     kRelocationDirections);
+        const glm::vec3 q = p + dir * (exits[size_t(c)].t + kRelocationMargin * margin_scale);
+        int back_faces = 0;
+        for (int k = 0; k < kRelocationTestRays; ++k) {
+            const std::optional<Hit> hit =
+                tracer.intersect(q, sh::fibonacciDirection(k, kRelocationTestRays));
+            back_faces += hit && hit->backFace ? 1 : 0;
+        }
+        if (float(back_faces) <= backface_threshold * float(kRelocationTestRays)) {
+            return q;
+        }
+    }
+    return std::nullopt;
 }
 
 } // namespace probekit::baker

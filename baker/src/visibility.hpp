@@ -14,12 +14,20 @@
 // Invalid probes (inside geometry; their coefficients come from dilation) get distance 0 on
 // every half-axis: the runtime then gives them weight only at their own position.
 //
+// Relocated probes (virtual offset, below: a probe inside geometry baked at the nearest point of
+// free space instead) are traced like any other from their lattice position, which lies inside
+// the solid, so their box of free space ends at the solid's own faces: they light the surfaces
+// of the solid around them and nothing beyond. The half-axes pointing away from the move (local
+// direction e with e . move < 0) get 0, so a probe inside a thin wall, moved out to one side,
+// never lights the wall's other face.
+//
 // Deterministic: no random numbers, every probe independent, so the bytes do not depend on the
 // thread count.
 #pragma once
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -44,8 +52,28 @@ std::array<uint8_t, visibility::kBytesPerProbe> traceProbeVisibility(const RayTr
                                                                      const grid::RigidFrame& frame);
 
 // Visibility of every probe of a baked volume (dense grid order or brick order), on `threads`
-// threads. validity: one byte per probe (kProbeInvalid probes get zeros).
+// threads. validity: one byte per probe (kProbeInvalid probes get zeros). moves: empty, or per
+// probe the world-space vector from its lattice position to where it was baked (zero for
+// probes baked in place).
 std::vector<uint8_t> traceVolumeVisibility(const RayTracer& tracer, const VolumeDesc& desc,
-                                           std::span<const uint8_t> validity, uint32_t threads);
+                                           std::span<const uint8_t> validity, uint32_t threads,
+                                           std::span<const glm::vec3> moves = {});
+
+// Relocation (virtual offset). A probe inside geometry (invalid by the back-face rule) stores
+// nothing a visible surface can use, and the surfaces of the solid it sits in are left to the
+// probes on their far side. Instead it is baked at the nearest point of free space: from the
+// lattice position `p`, kRelocationDirections spherical-Fibonacci directions find where rays
+// leave the solid (a back-face hit at distance t <= max_distance); candidates in order of t
+// (ties in direction order) are moved kRelocationMargin x `margin_scale` beyond the exit and
+// accepted when no more than `backface_threshold` of kRelocationTestRays rays from there hit
+// back faces (the validity rule on a cheaper ray set; the bake's own rule decides in the end).
+// Nothing when no candidate within max_distance passes. Deterministic.
+constexpr int kRelocationDirections = 64;
+constexpr int kRelocationTestRays = 64;
+constexpr int kRelocationCandidates = 4;
+constexpr float kRelocationMargin = 0.05f;
+std::optional<glm::vec3> relocationTarget(const RayTracer& tracer, glm::vec3 p,
+                                          float max_distance, float margin_scale,
+                                          float backface_threshold);
 
 } // namespace probekit::baker

@@ -320,6 +320,7 @@ nlohmann::json makeReport(const BakeOptionsCli& o, const baker::BakeConfig& conf
         {"rays", s.rays},
         {"mrays_per_second", s.mraysPerSecond},
         {"invalid_probes", s.invalidProbes},
+        {"relocated_probes", s.relocatedProbes},
         {"peak_memory_bytes", s.peakMemoryBytes},
         {"predicted_peak_bytes", s.predictedPeakBytes},
         {"predicted_memory",
@@ -370,6 +371,11 @@ void printSummary(const BakeOptionsCli& o, const baker::BakeConfig& config,
                 o.output.c_str(), s.seconds, count(s.probes), double(s.rays), s.mraysPerSecond,
                 count(s.invalidProbes), double(s.peakMemoryBytes) / (1 << 20),
                 double(s.predictedPeakBytes) / (1 << 20), s.threads);
+    if (s.relocatedProbes > 0) {
+        std::printf("  %llu probes inside geometry baked at the nearest free point instead "
+                    "(validity.relocate)\n",
+                    count(s.relocatedProbes));
+    }
     if (config.method == baker::Method::Vpl) {
         std::printf("  VPLs: %llu requested, %llu placed from %llu light paths, %.1f clusters "
                     "gathered per probe\n",

@@ -217,6 +217,10 @@ struct BakeConfig {
     // is placed against) is baked again just inside the box, within 1/8 of the finest probe
     // spacing, instead of being dilated.
     bool nudge = true;
+    // Dense volumes: a probe inside geometry is baked at the nearest free point within one cell
+    // instead (virtual offset; baker/src/visibility.hpp), and lights the surfaces of the solid
+    // it sits in (README, "Surface accuracy").
+    bool relocate = true;
     // Store per-probe occluder distances (formats/.../visibility.hpp) so that interpolation
     // between probes does not carry light through walls; 54 rays per probe.
     bool visibility = true;
@@ -362,6 +366,7 @@ struct BakeStats {
     // Bricked volumes (summed over them):
     uint64_t bricksPerLevel[4] = {0, 0, 0, 0}; // bricks written, by level
     uint64_t nudgedProbes = 0;                 // box-face probes baked just inside the box
+    uint64_t relocatedProbes = 0; // probes inside geometry baked at the nearest free point
     uint64_t refineCandidates = 0;             // bricks whose finer probes were baked to test them
     uint64_t budgetDropped = 0;                // finer bricks removed by max_memory_mb
     uint64_t memoryUntested = 0; // candidate bricks not refined: the working memory was full

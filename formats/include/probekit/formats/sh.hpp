@@ -113,6 +113,25 @@ DeringResult deringIrradiance(const ShRgb& sh, Order order);
 // Applies the window above with a given lambda (>= 0).
 ShRgb applyWindow(const ShRgb& sh, Order order, float lambda);
 
+// The closest SH (in the L2 norm of irradiance over the sphere) whose irradiance is non-negative
+// for every unit normal: per channel, minimise |E' - E|^2 subject to E'(n) >= margin for all n,
+// margin = relative_margin x the channel's mean irradiance over the sphere (pi Y00 L00, at least
+// 0), so that float rounding of interpolation and storage cannot dip below zero. Solved by an
+// active-set loop: the lowest point of E' over the sphere (256 spherical-Fibonacci seeds, the
+// lowest 4 refined by projected gradient descent) is added as a constraint and the projection
+// onto all constraints so far (a 9-dimensional quadratic programme, solved through its
+// non-negative least-squares dual) is recomputed, until the lowest point meets the margin; if
+// 24 points do not suffice, band 0 is raised by what is missing. A probe that already meets the
+// margin is returned unchanged, bit for bit. Unlike a window, the change is confined to where
+// E was negative and its surroundings, so the sides facing the light keep their contrast.
+struct NonNegativeResult {
+    ShRgb sh;
+    bool changed = false;
+    float minIrradiance = 0.0f;  // the lowest E over the sphere before, over channels (<= 0)
+    float relativeChange = 0.0f; // |E' - E| / |E| over the sphere, three channels together
+};
+NonNegativeResult projectNonNegative(const ShRgb& sh, Order order, float relative_margin);
+
 // Spherical-Fibonacci direction i of n (the point set reference.json uses):
 // y = 1 - (2i + 1) / n, phi = i * pi * (3 - sqrt(5)), dir = (sqrt(1 - y^2) cos phi, y,
 // sqrt(1 - y^2) sin phi).
