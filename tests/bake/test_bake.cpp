@@ -1,5 +1,6 @@
 // Bake-level tests: config parsing, volume placement, the Cornell box against an independent
 // path-traced reference, determinism across thread counts, validity and dilation.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -12,6 +13,8 @@
 #include "bake_test_support.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/generators.hpp"
+#include "probekit/formats/sh.hpp"
+#include "probekit/formats/visibility.hpp"
 #include "probekit/runtime/sampler.hpp"
 
 using namespace probekit;
@@ -328,14 +331,15 @@ TEST(BakeDeterminism, BitIdenticalForOneAndTwoThreads) {
     EXPECT_NE(other.value().file.volumes[0].texelsF16, a.value().file.volumes[0].texelsF16);
 }
 
-// A probe inside the Cornell box's tall block sees only back faces: it must be marked invalid
-// and filled from its valid neighbours, never left black.
+// A probe inside the Cornell box's tall block sees only back faces: without relocation it must
+// be marked invalid and filled from its valid neighbours, never left black.
 TEST(BakeValidity, ProbeInsideGeometryIsInvalidAndDilated) {
     const auto dir = test::tempDir("validity");
     ASSERT_TRUE(writeGeneratedScene("cornell", dir / "cornell.gltf").ok());
     Scene scene = test::loadOrFail(dir / "cornell.gltf");
     BakeConfig c;
     c.path.samples = 256;
+    c.relocate = false;
     VolumeConfig v;
     v.bounds.mode = BoundsMode::Custom;
     // A 4x1x1 row along x at y = 0.2 m through the tall block (x 0.265..0.472 at z ~0.35).
@@ -358,6 +362,37 @@ TEST(BakeValidity, ProbeInsideGeometryIsInvalidAndDilated) {
     Result<BakeResult> raw = bake(scene, c);
     ASSERT_TRUE(raw.ok());
     EXPECT_NE(raw.value().file.volumes[0].probe(2), vol.probe(1));
+}
+
+// The same row with relocation (the default): both probes inside the tall block have free space
+// within a cell (0.1 m), are baked there and stored as valid, lit (E > 0 towards the nearest
+// face they moved through), with their own values rather than a neighbour's copy; their
+// visibility keeps the half-axes towards the move and closes the others.
+TEST(BakeValidity, ProbeInsideGeometryIsRelocatedToFreeSpace) {
+    const Scene scene = test::generatedScene("cornell");
+    BakeConfig c;
+    c.path.samples = 256;
+    VolumeConfig v;
+    v.bounds.mode = BoundsMode::Custom;
+    v.bounds.min = glm::vec3(0.10f, 0.15f, 0.30f);
+    v.bounds.max = glm::vec3(0.50f, 0.25f, 0.40f);
+    v.resolution = glm::uvec3(4, 1, 1);
+    v.storage = Storage::Float32;
+    c.volumes = {v};
+    Result<BakeResult> r = bake(scene, c);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    const Volume& vol = r.value().file.volumes[0];
+    EXPECT_EQ(r.value().stats.relocatedProbes, 2u);
+    EXPECT_EQ(r.value().stats.invalidProbes, 0u);
+    EXPECT_EQ(vol.validity, (std::vector<uint8_t>{1, 1, 1, 1}));
+    for (size_t i : {size_t(2), size_t(3)}) {
+        EXPECT_NE(vol.probe(i), vol.probe(1)) << i;
+        EXPECT_GT(sh::irradiance(vol.probe(i), vol.desc.shOrder, glm::vec3(0, 1, 0)).x, 0.0f) << i;
+        // Some half-axis open (towards the move) and some closed (away from it).
+        const uint8_t* q = &vol.visibility[visibility::kBytesPerProbe * i];
+        EXPECT_GT(*std::max_element(q, q + visibility::kBytesPerProbe), 0) << i;
+        EXPECT_EQ(*std::min_element(q, q + visibility::kBytesPerProbe), 0) << i;
+    }
 }
 
 TEST(BakeGenerators, CornellLoadsWithPublishedDimensions) {
