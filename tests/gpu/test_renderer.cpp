@@ -372,7 +372,7 @@ TEST_F(Renderer, CornellIrradianceMatchesTheCpuSampler) {
     grid::Aabb bounds;
     cornellMesh(vertices, indices, bounds);
     ASSERT_FALSE(vertices.empty());
-    // The bundled example's two volumes (examples/cornell-bake.json): the whole box in half
+    // Two volumes as the bundled example once had them: the whole box in half
     // precision, and a higher-priority corner volume with a fade band. Their data is analytic:
     // this test is about the GPU path reproducing the CPU sampler, whatever the data.
     VolumeSpec box;
