@@ -375,8 +375,9 @@ TEST(StabilityHalf, BrightEmitterIsAClearErrorNeverAnInfinity) {
 // 6. SH ringing: a scene of nothing but a 100 W/m^2 directional light and a sky of radiance
 // 0.1 (E = 0.31 W/m^2 from every side). The exact irradiance is
 // E(n) = 100 max(0, n . -d) + 0.1 pi; L2 SH of the delta dips to about -0.04 x 100 on the far
-// side, below the sky, so the stored probe has negative irradiance. Deringing (sh.hpp) must
-// remove every negative value over a dense set of normals; its cost is the change in error against the exact answer, printed with the window's
+// side, below the sky, so the probe baked without deringing has negative irradiance. The bake's
+// deringing (BakeConfig::dering, sh.hpp) must remove every negative value over a dense set of
+// normals; its cost is the change in error against the exact answer, printed with the window's
 // own relative change.
 TEST(StabilityRinging, DeringingRemovesNegativeIrradianceAtAStatedCost) {
     constexpr float kSun = 100.0f;
@@ -401,11 +402,20 @@ TEST(StabilityRinging, DeringingRemovesNegativeIrradianceAtAStatedCost) {
     BakeConfig config;
     config.path.samples = 4096;
     config.volumes = {boxVolume(glm::vec3(-0.5f), glm::vec3(0.5f), glm::uvec3(1))};
+    config.dering = false;
     const BakeResult off = bakeOrFail(scene, config);
+    config.dering = true;
+    const BakeResult on = bakeOrFail(scene, config);
     ASSERT_EQ(off.file.volumes.size(), 1u);
+    ASSERT_EQ(on.file.volumes.size(), 1u);
     const sh::ShRgb raw = off.file.volumes[0].probe(0);
+    const sh::ShRgb stored = on.file.volumes[0].probe(0);
+    // The bake stores exactly what deringing the raw probe gives.
     const sh::DeringResult dering = sh::deringIrradiance(raw, sh::Order::L2);
-    const sh::ShRgb stored = dering.sh;
+    EXPECT_EQ(stored, dering.sh);
+    EXPECT_EQ(off.stats.deringedProbes, 0u);
+    EXPECT_EQ(on.stats.deringedProbes, 1u);
+    EXPECT_FLOAT_EQ(float(on.stats.deringMaxChange), dering.relativeChange);
 
     struct Figures {
         int negative = 0;

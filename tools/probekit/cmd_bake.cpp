@@ -320,6 +320,9 @@ nlohmann::json makeReport(const BakeOptionsCli& o, const baker::BakeConfig& conf
         {"rays", s.rays},
         {"mrays_per_second", s.mraysPerSecond},
         {"invalid_probes", s.invalidProbes},
+        {"deringed_probes", s.deringedProbes},
+        {"dering_mean_change", s.deringMeanChange},
+        {"dering_max_change", s.deringMaxChange},
         {"peak_memory_bytes", s.peakMemoryBytes},
         {"predicted_peak_bytes", s.predictedPeakBytes},
         {"predicted_memory",
@@ -370,6 +373,11 @@ void printSummary(const BakeOptionsCli& o, const baker::BakeConfig& config,
                 o.output.c_str(), s.seconds, count(s.probes), double(s.rays), s.mraysPerSecond,
                 count(s.invalidProbes), double(s.peakMemoryBytes) / (1 << 20),
                 double(s.predictedPeakBytes) / (1 << 20), s.threads);
+    if (config.dering) {
+        std::printf("  deringed %llu probes (irradiance changed by %.3g RMS on average, %.3g at "
+                    "most)\n",
+                    count(s.deringedProbes), s.deringMeanChange, s.deringMaxChange);
+    }
     if (config.method == baker::Method::Vpl) {
         std::printf("  VPLs: %llu requested, %llu placed from %llu light paths, %.1f clusters "
                     "gathered per probe\n",
