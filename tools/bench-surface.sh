@@ -3,7 +3,7 @@
 # path-traced surface reference (probekit surface-reference), then the volume of each bake
 # sampled at its pixels by the CPU sampler (probekit surface-error --volume), as a markdown
 # table. "before" bakes with relocation and the non-negative projection off (validity.relocate,
-# validity.dering), "after" with the defaults; "seed 2" repeats "after" with another seed, so
+# dering), "after" with the defaults; "seed 2" repeats "after" with another seed, so
 # bake noise shows beside the error. References are kept in the output folder and reused.
 # Usage: tools/bench-surface.sh [PROBEKIT] [OUT_DIR] [REFERENCE_SAMPLES]
 set -euo pipefail
@@ -21,7 +21,7 @@ import json, sys
 c = json.load(open(sys.argv[1]))
 c.setdefault("validity", {})
 c["validity"]["relocate"] = sys.argv[2] == "true"
-c["validity"]["dering"] = sys.argv[3] == "true"
+c["dering"] = sys.argv[3] == "true"
 c["seed"] = int(sys.argv[4])
 print(json.dumps(c))
 PY

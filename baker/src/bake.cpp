@@ -17,6 +17,7 @@
 
 #include "bricked.hpp"
 #include "coordinate_range.hpp"
+#include "dering.hpp"
 #include "lpv_method.hpp"
 #include "memory_model.hpp"
 #include "parallel.hpp"
@@ -480,6 +481,7 @@ struct BakeRun {
     std::atomic<uint32_t> samplesMax{0};
     std::atomic<uint64_t> overTarget{0}; // adaptive: valid probes that stopped above the target
     std::mutex statsMutex;               // a batch's chunks add their ProbeChunkStats under it
+    DeringTally dering;                  // summed over the volumes as they finish, in order
 
     double elapsedSeconds() const {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -673,6 +675,7 @@ BrickedSettings brickedSettings(const BakeRun& run, const VolumeConfig& vc, uint
     bs.nudge = run.config.nudge;
     bs.backfaceThreshold = run.config.backfaceThreshold;
     bs.visibility = run.config.visibility;
+    bs.dering = run.config.dering;
     bs.threads = run.threads;
     return bs;
 }
@@ -724,6 +727,17 @@ Result<Volume> checkedVolume(const Scene& scene, Result<Volume> volume) {
     return makeError(volume.error().code, where + volume.error().message + hint);
 }
 
+// The last deringing pass of a volume, on its probes as stored (after dilation and stitching),
+// and its statistics. `changes` holds what earlier passes did (dering.hpp).
+void deringStored(BakeRun& run, const VolumeDesc& desc, std::span<sh::ShRgb> probes,
+                  std::span<float> changes) {
+    deringProbes(probes, desc.shOrder, desc.storage, run.threads, changes);
+    const DeringTally t = tallyDering(changes);
+    run.dering.probes += t.probes;
+    run.dering.sumChange += t.sumChange;
+    run.dering.maxChange = std::max(run.dering.maxChange, t.maxChange);
+}
+
 Result<Volume> bakeBrickedVolume(BakeRun& run, const VolumeDesc& desc, const VolumeConfig& vc,
                                  uint32_t volume_index, const ProbeBatchFn& bake_batch,
                                  BakeResult& result) {
@@ -732,10 +746,15 @@ Result<Volume> bakeBrickedVolume(BakeRun& run, const VolumeDesc& desc, const Vol
     if (!bricked) {
         return bricked.error();
     }
-    const BrickedOutcome& b = bricked.value();
+    BrickedOutcome& b = bricked.value();
     addBrickedOutcome(b, result);
     if (!b.visibility.empty()) {
         run.rays.fetch_add(kVisibilityRaysPerProbe * b.desc.probeCount());
+    }
+    if (run.config.dering) {
+        // bakeBricked deringed the probes before stitching; stitched probes are interpolations
+        // of those and pass but for rounding, which this pass catches (dering.hpp).
+        deringStored(run, b.desc, b.probes, b.deringChanges);
     }
     return checkedVolume(run.scene, makeVolume(b.desc, b.probes, b.validity, b.visibility));
 }
@@ -822,6 +841,10 @@ Result<Volume> bakeDenseVolume(BakeRun& run, const VolumeDesc& desc, const Probe
                                       " invalid probes have no valid probe to dilate from");
         }
     }
+    if (run.config.dering) {
+        std::vector<float> changes(count, kNotDeringed);
+        deringStored(run, desc, probes, changes);
+    }
     // Visibility from the validity before dilation: dilated probes stay hidden.
     std::vector<uint8_t> vis;
     if (run.config.visibility) {
@@ -870,6 +893,10 @@ void finishStats(const BakeRun& run, const MethodState& method, BakeStats& stats
     }
     stats.maxSamples = run.samplesMax.load();
     stats.probesOverTarget = run.overTarget.load();
+    stats.deringedProbes = run.dering.probes;
+    stats.deringMeanChange =
+        run.dering.probes > 0 ? run.dering.sumChange / double(run.dering.probes) : 0.0;
+    stats.deringMaxChange = run.dering.maxChange;
 }
 
 // The metadata records what was actually baked: the resolved resolution of every volume and

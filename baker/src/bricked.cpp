@@ -7,6 +7,7 @@
 
 #include <glm/common.hpp>
 
+#include "dering.hpp"
 #include "irradiance_error.hpp"
 #include "probekit/formats/brick.hpp"
 #include "ray_tracer.hpp"
@@ -990,6 +991,10 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
         dilateUsed(b, used_keys);
     }
     copyProbes(b, used_keys, original_valid);
+    if (settings.dering) {
+        b.out.deringChanges.assign(b.out.probes.size(), kNotDeringed);
+        deringProbes(b.out.probes, order, desc.storage, settings.threads, b.out.deringChanges);
+    }
     const Result<void> stitched = stitch(b);
     if (!stitched) {
         return stitched.error();

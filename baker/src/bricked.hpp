@@ -51,7 +51,10 @@ struct BrickedSettings {
     // BakeConfig::visibility: trace the probes' visibility (visibility.hpp; needs `tracer`),
     // stitch with it and count its GPU bytes in the budget.
     bool visibility = false;
-    uint32_t threads = 1; // for the visibility tracing
+    // BakeConfig::dering: dering the probes before their borders are stitched (dering.hpp);
+    // the caller derings the stitched result again.
+    bool dering = false;
+    uint32_t threads = 1; // for the visibility tracing and deringing
 };
 
 struct BrickedOutcome {
@@ -59,6 +62,9 @@ struct BrickedOutcome {
     std::vector<sh::ShRgb> probes;
     std::vector<uint8_t> validity;
     std::vector<uint8_t> visibility; // empty unless BrickedSettings::visibility
+    // Per probe, what deringing before stitching did (dering.hpp: kNotDeringed, or the relative
+    // change); empty unless BrickedSettings::dering.
+    std::vector<float> deringChanges;
     uint64_t bricksPerLevel[4] = {0, 0, 0, 0};
     uint64_t refineCandidates = 0;
     uint64_t budgetDropped = 0;

@@ -505,6 +505,9 @@ const std::vector<Field<BakeConfig>>& topFields() {
               "choose density, refinement, SH order and samples for this relative RMS "
               "irradiance error",
               "--target-error"),
+        field("dering", &BakeConfig::dering, flag(), "",
+              "window each stored probe's SH so its irradiance is >= 0 for every normal",
+              "--dering"),
     };
     return fields;
 }

@@ -9,6 +9,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -37,11 +39,6 @@ constexpr double kPublishedDigitsTolerance = 5e-7;
 // Irradiance of a unit-irradiance delta: nine float terms of size <= 1 on top of the constant
 // error above; 1e-5 leaves a decade of room and still catches any wrong A_l or sign.
 constexpr double kIrradianceTolerance = 1e-5;
-// sh.hpp promises the bisection finds lambda to 1e-4 relative; the returned float adds ~1e-7.
-constexpr double kLambdaTolerance = 2e-4;
-// Deringing decides E >= 0 at the test normals in double; rounding the windowed coefficients to
-// float and evaluating in float (sh::irradiance) may undershoot by a few ulp of max E.
-constexpr double kDeringedMinRelativeTolerance = 1e-6;
 
 // ---- Quadrature -------------------------------------------------------------------------------
 
@@ -190,13 +187,6 @@ double l2ClampedCosine(double t) {
         e += lobe[l] * (2.0 * l + 1.0) / (4.0 * kPi) * legendrePolynomial(l, t);
     }
     return e;
-}
-
-double minComponent(glm::vec3 v) {
-    return std::min({v.x, v.y, v.z});
-}
-double maxComponent(glm::vec3 v) {
-    return std::max({v.x, v.y, v.z});
 }
 
 // ---- Basis ------------------------------------------------------------------------------------
@@ -467,134 +457,407 @@ TEST(ShTruncate, ZeroesBandTwoAndKeepsBandsZeroAndOne) {
     }
 }
 
-// ---- Deringing ----------------------------------------------------------------------------------
+// ---- The exact minimum and deringing ---------------------------------------------------------
 
-// Smallest E over the test normals and channels relative to the largest |E| there.
-double relativeMinAtTestNormals(const ShRgb& set, Order order, int normals) {
-    double min_e = 0.0;
-    double max_abs_e = 0.0;
-    for (int i = 0; i < normals; ++i) {
-        const glm::vec3 e = sh::irradiance(set, order, sh::fibonacciDirection(i, normals));
-        min_e = std::min(min_e, minComponent(e));
-        max_abs_e = std::max({max_abs_e, std::abs(minComponent(e)), std::abs(maxComponent(e))});
+// E of one channel at unit normal n as the runtime evaluates it (sh::irradiance, float).
+double channelIrradiance(const ShRgb& set, Order order, glm::vec3 n, int channel) {
+    return double(sh::irradiance(set, order, n)[channel]);
+}
+
+// Smallest E of one channel over n spherical-Fibonacci normals, evaluated in float as above.
+double sampledMinimum(const ShRgb& set, Order order, int channel, int n) {
+    double min_e = std::numeric_limits<double>::infinity();
+    for (int i = 0; i < n; ++i) {
+        min_e =
+            std::min(min_e, channelIrradiance(set, order, sh::fibonacciDirection(i, n), channel));
     }
-    return min_e / max_abs_e;
+    return min_e;
 }
 
-TEST(ShDering, StrongDeltaBecomesNonNegative) {
-    const glm::vec3 d = glm::normalize(glm::vec3(0.3f, 0.8f, -0.5f));
-    const ShRgb delta = sh::projectDelta(d, glm::vec3(100.0f), Order::L2);
-    const sh::DeringResult result = sh::deringIrradiance(delta, Order::L2);
-
-    // Before: the L2 clamped cosine dips to ~ -0.0396 of the peak irradiance opposite the light.
-    EXPECT_LT(relativeMinAtTestNormals(delta, Order::L2, sh::kDeringTestNormals), -0.03);
-    EXPECT_LT(result.minIrradiance, -0.03f * 100.0f);
-    EXPECT_GT(result.lambda, 0.0f);
-
-    EXPECT_GE(relativeMinAtTestNormals(result.sh, Order::L2, sh::kDeringTestNormals),
-              -kDeringedMinRelativeTolerance);
-    EXPECT_EQ(result.sh.rgb[0], delta.rgb[0]);
-
-    // E >= 0 is enforced at the 512 test normals only; the tangent point of the deringed E
-    // generally falls between them, and a 200001-point set measured dips of 3e-5..5.5e-4 of the
-    // peak for three light directions. 1e-3 bounds that and still catches a window too weak.
-    constexpr double kBetweenTestNormalsTolerance = 1e-3;
-    EXPECT_GE(relativeMinAtTestNormals(result.sh, Order::L2, 20000), -kBetweenTestNormalsTolerance);
-
-    // A lone delta is the worst case this window faces. On the continuous sphere the smallest
-    // window is lambda* = 0.177732 (band scales 0.5845, 0.1352) and costs relativeChange
-    // 0.418746 (solved from 1/4 + s1 t / 2 + 5/32 s2 (3t^2 - 1) >= 0 on [-1, 1]); 512 test
-    // normals can only need less, and measured 0.4182..0.4187. Ringing-free L2 irradiance of a
-    // point-like light costs ~42% of its RMS: the bound pins that.
-    constexpr double kContinuousLambda = 0.177732;
-    constexpr float kMinRelativeChange = 0.41f;
-    constexpr float kMaxRelativeChange = 0.419f;
-    EXPECT_LE(result.lambda, kContinuousLambda * (1.0 + kLambdaTolerance));
-    EXPECT_GT(result.lambda, 0.95 * kContinuousLambda);
-    EXPECT_GT(result.relativeChange, kMinRelativeChange);
-    EXPECT_LT(result.relativeChange, kMaxRelativeChange);
-}
-
-TEST(ShDering, LambdaIsTheSmallestThatWorks) {
-    const ShRgb delta =
-        sh::projectDelta(glm::normalize(glm::vec3(-0.6f, 0.1f, 0.7f)), glm::vec3(1.0f), Order::L2);
-    const sh::DeringResult result = sh::deringIrradiance(delta, Order::L2);
-    const ShRgb weaker =
-        sh::applyWindow(delta, Order::L2, result.lambda * float(1.0 - kLambdaTolerance));
-    EXPECT_LT(relativeMinAtTestNormals(weaker, Order::L2, sh::kDeringTestNormals), 0.0);
-    EXPECT_EQ(sh::applyWindow(delta, Order::L2, result.lambda), result.sh);
-}
-
-TEST(ShDering, L1DeltaHasAnalyticLambda) {
-    // L1 delta: E(t) = 1/4 + (1/2) s t with s = 1/(1 + 4 lambda). The test normal closest to
-    // -d (d = +y) is the last Fibonacci point, t = -(1 - 1/512); E >= 0 there needs
-    // s = 1 / (2 (1 - 1/512)), i.e. lambda = (1 - 2/512) / 4.
-    const ShRgb delta = sh::projectDelta(glm::vec3(0, 1, 0), glm::vec3(1.0f), Order::L1);
-    const sh::DeringResult result = sh::deringIrradiance(delta, Order::L1);
-    const double expected_lambda = (1.0 - 2.0 / sh::kDeringTestNormals) / 4.0;
-    EXPECT_NEAR(result.lambda, expected_lambda, kLambdaTolerance * expected_lambda);
-    EXPECT_NEAR(result.minIrradiance, 0.25 - 0.5 * (1.0 - 1.0 / sh::kDeringTestNormals),
-                kIrradianceTolerance);
-    for (int i = 4; i < 9; ++i) {
-        EXPECT_EQ(result.sh.rgb[i], glm::vec3(0.0f));
+// Largest |E| of a channel's terms, sum_i A_l |L_i| peak|Y_i|: the scale of its rounding.
+double irradianceScale(const ShRgb& set, Order order, int channel) {
+    constexpr double kPeak[9] = {0.282095, 0.488603, 0.488603, 0.488603, 0.546274,
+                                 0.546274, 0.630784, 0.546274, 0.546274};
+    double sum = 0.0;
+    for (int i = 0; i < sh::coefficientCount(order); ++i) {
+        sum += double(sh::kCosineLobe[sh::bandOf(i)]) * std::abs(double(set.rgb[i][channel])) *
+               kPeak[i];
     }
-    // Exact cost: band 1 of E shrinks by 1 - s, so relativeChange = (1 - s) |E_1| / |E|, with
-    // |E_0| = pi Y00 and |E_1| = (2 pi / 3) |Y1(d)| = (2 pi / 3) kY1, as x^2 + y^2 + z^2 = 1.
-    const double s = 1.0 / (1.0 + 4.0 * expected_lambda);
-    const double e0 = kPi * sh::kY00;
-    const double e1 = 2.0 * kPi / 3.0 * sh::kY1;
-    EXPECT_NEAR(result.relativeChange, (1.0 - s) * e1 / std::hypot(e0, e1), 1e-4);
+    return sum;
 }
 
-TEST(ShDering, ChannelsShareOneLambdaSetByTheWorstChannel) {
-    // A red-heavy light over a blue-heavy ambient: red rings most, and its lambda fixes all.
-    const glm::vec3 d = glm::normalize(glm::vec3(0.5f, -0.2f, 0.4f));
-    ShRgb set = sh::projectDelta(d, glm::vec3(4.0f, 2.0f, 1.0f), Order::L2);
-    set.rgb[0] += glm::vec3(0.05f, 0.05f, 0.5f);
-    const sh::DeringResult result = sh::deringIrradiance(set, Order::L2);
-
-    ShRgb red_only;
-    for (int i = 0; i < 9; ++i) {
-        red_only.rgb[i] = glm::vec3(set.rgb[i].x);
+// Relative RMS change of E over the sphere, by quadrature (independent of the coefficient
+// identity DeringResult uses): sqrt(int |E_a - E_b|^2 / int |E_b|^2) over all channels.
+double quadratureRelativeChange(const ShRgb& a, const ShRgb& b, Order order) {
+    double num = 0.0;
+    double den = 0.0;
+    for (const QuadraturePoint& q : sphereQuadrature(glm::dvec3(0, 0, 1))) {
+        const glm::dvec3 ea(sh::irradiance(a, order, q.dir));
+        const glm::dvec3 eb(sh::irradiance(b, order, q.dir));
+        num += q.weight * glm::dot(ea - eb, ea - eb);
+        den += q.weight * glm::dot(eb, eb);
     }
-    EXPECT_NEAR(result.lambda, sh::deringIrradiance(red_only, Order::L2).lambda,
-                kLambdaTolerance * result.lambda);
-    EXPECT_GE(relativeMinAtTestNormals(result.sh, Order::L2, sh::kDeringTestNormals),
-              -kDeringedMinRelativeTolerance);
-    EXPECT_EQ(result.sh.rgb[0], set.rgb[0]);
+    return std::sqrt(num / den);
 }
 
-TEST(ShDering, NonNegativeSetIsUnchanged) {
-    ShRgb constant;
-    constant.rgb[0] = glm::vec3(1.0f, 2.0f, 3.0f);
-    const sh::DeringResult result = sh::deringIrradiance(constant, Order::L2);
-    EXPECT_EQ(result.lambda, 0.0f);
-    EXPECT_EQ(result.sh, constant);
-    EXPECT_EQ(result.minIrradiance, 0.0f);
-    EXPECT_EQ(result.relativeChange, 0.0f);
+// Float evaluation of E (sh::irradiance: nine float products and sums, constants of size ~1)
+// next to the exact minimum in double: a few ulp of the largest term.
+constexpr double kFloatEvaluationTolerance = 1e-6;
+// 200001 Fibonacci normals are ~0.008 rad apart: the sampled minimum misses the exact one by at
+// most (curvature <= 3 x the terms' scale) x (half the spacing)^2 / 2 ~ 3e-5 of the scale;
+// the bound leaves 3x.
+constexpr int kDenseNormals = 200001;
+constexpr double kDenseSamplingGap = 1e-4;
 
-    const sh::DeringResult zero = sh::deringIrradiance(ShRgb{}, Order::L2);
-    EXPECT_EQ(zero.lambda, 0.0f);
-    EXPECT_EQ(zero.relativeChange, 0.0f);
-}
-
-TEST(ShDering, NegativeMeanGetsTheStrongestWindow) {
-    // L00 < 0 on one channel: no window makes E >= 0, so the strongest one is applied (band 1
-    // scaled by < 1e-5) rather than looping, and the result says it changed almost everything.
-    constexpr float kStrongestBandOneScale = 1e-5f;
-    RandomDirections random;
-    ShRgb set = randomSh(random);
-    set.rgb[0] = glm::vec3(1.0f, -0.1f, 1.0f);
-    const sh::DeringResult result = sh::deringIrradiance(set, Order::L2);
-    EXPECT_EQ(result.sh.rgb[0], set.rgb[0]);
-    for (int i = 1; i < 9; ++i) {
-        for (int c = 0; c < 3; ++c) {
-            EXPECT_LE(std::abs(result.sh.rgb[i][c]),
-                      kStrongestBandOneScale * std::abs(set.rgb[i][c]));
+// Random channels: a mean and bands of either sign, some lobes strong enough to ring.
+ShRgb randomRinging(RandomDirections& random, Order order) {
+    ShRgb set;
+    for (int c = 0; c < 3; ++c) {
+        // One to three delta lights of strengths over six decades, and an ambient term.
+        const int lights = 1 + int(random.uniform() * 3.0);
+        for (int k = 0; k < lights; ++k) {
+            const float strength = float(std::pow(10.0, 6.0 * random.uniform() - 2.0));
+            const ShRgb delta = sh::projectDelta(random.next(), glm::vec3(strength), order);
+            for (int i = 0; i < 9; ++i) {
+                set.rgb[i][c] += delta.rgb[i][c];
+            }
+        }
+        set.rgb[0][c] += float(random.uniform() * random.uniform()) * set.rgb[0][c];
+        // Noise on every coefficient, as Monte Carlo leaves it.
+        for (int i = 1; i < sh::coefficientCount(order); ++i) {
+            set.rgb[i][c] += float(0.1 * (2.0 * random.uniform() - 1.0)) * set.rgb[0][c];
         }
     }
-    EXPECT_LT(result.minIrradiance, 0.0f);
-    EXPECT_GT(result.relativeChange, 0.0f);
+    return set;
+}
+
+TEST(ShMinimum, DeltaLobeHasItsAnalyticRingMinimum) {
+    // The hard case of the trust-region problem: the L2 lobe of a delta is axially symmetric and
+    // takes its minimum on a ring, t = n.d = -8/15, where 1/4 + t/2 + 5/16 P2(t) = -19/480.
+    const glm::vec3 d = glm::normalize(glm::vec3(0.3f, 0.8f, -0.5f));
+    const ShRgb delta = sh::projectDelta(d, glm::vec3(1.0f, 10.0f, 0.01f), Order::L2);
+    const double scale[3] = {1.0, 10.0, 0.01};
+    for (int c = 0; c < 3; ++c) {
+        const sh::IrradianceMinimum m = sh::minimumIrradiance(delta, Order::L2, c);
+        EXPECT_NEAR(m.value, -19.0 / 480.0 * scale[c], kIrradianceTolerance * scale[c]);
+        EXPECT_NEAR(glm::length(m.normal), 1.0, 1e-12);
+        EXPECT_NEAR(glm::dot(m.normal, glm::dvec3(d)), -8.0 / 15.0, 1e-5);
+        EXPECT_NEAR(channelIrradiance(delta, Order::L2, glm::vec3(m.normal), c), m.value,
+                    kFloatEvaluationTolerance * scale[c]);
+    }
+    // L1: 1/4 + t/2, its minimum -1/4 straight opposite the light.
+    const ShRgb l1 = sh::projectDelta(d, glm::vec3(1.0f), Order::L1);
+    const sh::IrradianceMinimum m1 = sh::minimumIrradiance(l1, Order::L1, 0);
+    EXPECT_NEAR(m1.value, -0.25, kIrradianceTolerance);
+    // d is normalised in float, and the coefficients are float products of it: ~1e-7.
+    EXPECT_NEAR(glm::dot(m1.normal, glm::dvec3(d)), -1.0, 1e-6);
+}
+
+TEST(ShMinimum, MatchesDenseSamplingAndIsTakenAtItsNormal) {
+    RandomDirections random;
+    double largest_gap = 0.0;
+    for (int trial = 0; trial < 24; ++trial) {
+        const Order order = trial % 4 == 0 ? Order::L1 : Order::L2;
+        const ShRgb set = trial % 2 == 0 ? randomSh(random) : randomRinging(random, order);
+        for (int c = 0; c < 3; ++c) {
+            const double scale = irradianceScale(set, order, c);
+            const sh::IrradianceMinimum m = sh::minimumIrradiance(set, order, c);
+            const double sampled = sampledMinimum(set, order, c, kDenseNormals);
+            // Never above any sampled value (it is a lower bound) but by float evaluation...
+            EXPECT_LE(m.value, sampled + kFloatEvaluationTolerance * scale) << trial << " " << c;
+            // ... never far below what the dense set finds...
+            EXPECT_GE(m.value, sampled - kDenseSamplingGap * scale) << trial << " " << c;
+            // ... and taken at its own normal.
+            EXPECT_NEAR(channelIrradiance(set, order, glm::vec3(m.normal), c), m.value,
+                        kFloatEvaluationTolerance * scale)
+                << trial << " " << c;
+            largest_gap = std::max(largest_gap, (sampled - m.value) / scale);
+        }
+    }
+    std::printf("[sh minimum] dense sampling (%d normals) lies above the exact minimum by at most "
+                "%.3g of the terms' scale\n",
+                kDenseNormals, largest_gap);
+}
+
+TEST(ShDering, SingleDeltaCostIsStatedAndBounded) {
+    // The least-change band window for a lone delta, solved on the continuous sphere (sh.hpp):
+    // minimise (pi/3)(1 - s1)^2 + (5 pi/64)(1 - s2)^2 subject to
+    // 1/4 - 5 s2 / 32 - 2 s1^2 / (15 s2) >= 0 (the minimum at the vertex t = -8 s1 / (15 s2))
+    // gives s1 = 0.85789, s2 = 0.90940 and a relative RMS change of E of 0.10558. The margin
+    // (1e-4 of the mean, targeted at 2e-4 plus rounding) moves that by ~1e-4.
+    constexpr double kScale1 = 0.85789;
+    constexpr double kScale2 = 0.90940;
+    constexpr double kChange = 0.10558;
+    constexpr double kMarginTolerance = 1e-3;
+    // Sloan's window with its smallest lambda that makes E >= 0 (0.177732: band scales 0.5845,
+    // 0.1352) changes E by 0.41875 RMS; the least-change window must do at least 3x better.
+    constexpr double kSloanChange = 0.41875;
+    for (const glm::vec3 d : {glm::vec3(0, 1, 0), glm::normalize(glm::vec3(0.3f, 0.8f, -0.5f)),
+                              glm::normalize(glm::vec3(-0.6f, 0.1f, 0.7f))}) {
+        const ShRgb delta = sh::projectDelta(d, glm::vec3(100.0f), Order::L2);
+        const sh::DeringResult r = sh::deringIrradiance(delta, Order::L2);
+        ASSERT_TRUE(r.changed());
+        EXPECT_EQ(r.changedChannels, 7);
+        EXPECT_NEAR(r.band1Scale.x, kScale1, kMarginTolerance);
+        EXPECT_NEAR(r.band2Scale.x, kScale2, kMarginTolerance);
+        EXPECT_NEAR(r.relativeChange, kChange, kMarginTolerance);
+        EXPECT_LT(r.relativeChange, kSloanChange / 3.0);
+        EXPECT_NEAR(quadratureRelativeChange(r.sh, delta, Order::L2), r.relativeChange, 1e-5);
+        EXPECT_EQ(r.sh.rgb[0], delta.rgb[0]) << "band 0 is never changed";
+        EXPECT_NEAR(r.minBefore.x, -19.0 / 480.0 * 100.0, 100.0 * kIrradianceTolerance);
+        const double mean = sh::meanIrradiance(delta, 0);
+        EXPECT_GE(r.minAfter.x, sh::kDeringMargin * mean);
+        EXPECT_LE(r.minAfter.x, 4.0 * sh::kDeringMargin * mean) << "no more than it needs";
+        std::printf("[dering delta] L2: s1 %.5f s2 %.5f, relative RMS change of E %.5f "
+                    "(Sloan's smallest window: %.5f); min E %.4g -> %.3g W/m^2\n",
+                    double(r.band1Scale.x), double(r.band2Scale.x), double(r.relativeChange),
+                    kSloanChange, r.minBefore.x, r.minAfter.x);
+
+        // L1: 1/4 + s1 t / 2 >= 0 needs s1 = 1/2 (less the margin); band 1 of E shrinks by
+        // 1 - s1, so the change is (1 - s1) |E_1| / |E| = 0.5 sqrt((pi/3) / (pi/4 + pi/3)).
+        const ShRgb l1 = sh::projectDelta(d, glm::vec3(100.0f), Order::L1);
+        const sh::DeringResult r1 = sh::deringIrradiance(l1, Order::L1);
+        const double l1_change = 0.5 * std::sqrt((kPi / 3.0) / (kPi / 4.0 + kPi / 3.0));
+        EXPECT_NEAR(r1.band1Scale.x, 0.5, kMarginTolerance);
+        EXPECT_LE(r1.band1Scale.x, 0.5f);
+        EXPECT_NEAR(r1.relativeChange, l1_change, kMarginTolerance);
+        EXPECT_NEAR(quadratureRelativeChange(r1.sh, l1, Order::L1), r1.relativeChange, 1e-5);
+        for (int i = 4; i < 9; ++i) {
+            EXPECT_EQ(r1.sh.rgb[i], glm::vec3(0.0f));
+        }
+
+        // Half storage: the window is solved so that the rounded values pass; that costs a little
+        // more margin (the rounding bound) and hardly any error.
+        const sh::DeringResult h = sh::deringIrradiance(delta, Order::L2, sh::Rounding::Float16);
+        EXPECT_NEAR(h.relativeChange, r.relativeChange, 5e-3);
+        EXPECT_EQ(sh::roundTo(h.sh, sh::Rounding::Float16), h.sh) << "changed values are stored";
+    }
+}
+
+TEST(ShDering, EveryResultIsNonNegativeOverTheWholeSphere) {
+    RandomDirections random;
+    int changed = 0;
+    int dense_checked = 0;
+    double worst_dense = std::numeric_limits<double>::infinity();
+    constexpr int kTrials = 600;
+    for (int trial = 0; trial < kTrials; ++trial) {
+        const Order order = trial % 3 == 0 ? Order::L1 : Order::L2;
+        const sh::Rounding rounding =
+            trial % 2 == 0 ? sh::Rounding::Float16 : sh::Rounding::Float32;
+        const ShRgb set = randomRinging(random, order);
+        const sh::DeringResult r = sh::deringIrradiance(set, order, rounding);
+        changed += r.changed() ? 1 : 0;
+        const ShRgb stored = sh::roundTo(r.sh, rounding);
+        for (int c = 0; c < 3; ++c) {
+            const double mean = sh::meanIrradiance(stored, c);
+            ASSERT_GT(mean, 0.0);
+            // Band 0 as stored is the input's as stored.
+            EXPECT_EQ(stored.rgb[0][c], sh::roundTo(set, rounding).rgb[0][c]);
+            // The exact minimum of the stored values keeps the margin...
+            const sh::IrradianceMinimum m = sh::minimumIrradiance(stored, order, c);
+            EXPECT_GE(m.value, sh::kDeringMargin * mean) << trial << " channel " << c;
+            EXPECT_NEAR(m.value, r.minAfter[c], 1e-12 * irradianceScale(stored, order, c));
+            // ... and E in float at the 2000 normals, and at 200001 for every 20th set, is >= 0.
+            const int normals = trial % 20 == 0 ? kDenseNormals : 2000;
+            const double sampled = sampledMinimum(stored, order, c, normals);
+            EXPECT_GE(sampled, 0.0) << trial << " channel " << c;
+            if (normals == kDenseNormals) {
+                ++dense_checked;
+                worst_dense = std::min(worst_dense, sampled / mean);
+            }
+        }
+    }
+    std::printf("[dering random] %d of %d ringing sets changed; over %d channels checked at %d "
+                "normals the smallest E is %.3g of the mean\n",
+                changed, kTrials, dense_checked, kDenseNormals, worst_dense);
+    EXPECT_GT(changed, kTrials / 2) << "the sets must ring for the test to mean anything";
+}
+
+TEST(ShDering, LeastChangeAmongBandWindows) {
+    // Against brute force: s2 on a grid of 201, the largest feasible s1 by bisection on the
+    // exact minimum, the cost (1 - s1)^2 |E_1|^2 + (1 - s2)^2 |E_2|^2. The solver searches s2
+    // continuously, so it may only be better, but for the grid's own optimum being between
+    // points; and Sloan's one-parameter window, which is one curve in the same square, never
+    // beats it.
+    RandomDirections random;
+    for (int trial = 0; trial < 12; ++trial) {
+        const ShRgb set = randomRinging(random, Order::L2);
+        const sh::DeringResult r = sh::deringIrradiance(set, Order::L2);
+        for (int c = 0; c < 3; ++c) {
+            if ((r.changedChannels & (1 << c)) == 0) {
+                continue;
+            }
+            double w[3] = {0.0, 0.0, 0.0};
+            for (int i = 1; i < 9; ++i) {
+                const double e = double(sh::kCosineLobe[sh::bandOf(i)]) * set.rgb[i][c];
+                w[sh::bandOf(i)] += e * e;
+            }
+            const double target = r.minAfter[c];
+            const auto feasible = [&](double s1, double s2) {
+                const ShRgb windowed =
+                    sh::scaleBands(set, Order::L2, glm::vec3(float(s1)), glm::vec3(float(s2)));
+                return sh::minimumIrradiance(windowed, Order::L2, c).value >= target;
+            };
+            double best = std::numeric_limits<double>::infinity();
+            for (int k = 0; k <= 200 && feasible(0.0, k / 200.0); ++k) {
+                const double s2 = k / 200.0;
+                double lo = 0.0;
+                double hi = 1.0;
+                if (feasible(1.0, s2)) {
+                    lo = 1.0;
+                }
+                for (int step = 0; step < 40 && lo < 1.0; ++step) {
+                    const double mid = 0.5 * (lo + hi);
+                    (feasible(mid, s2) ? lo : hi) = mid;
+                }
+                best = std::min(best, w[1] * (1 - lo) * (1 - lo) + w[2] * (1 - s2) * (1 - s2));
+            }
+            const double s1 = r.band1Scale[c];
+            const double s2 = r.band2Scale[c];
+            const double cost = w[1] * (1 - s1) * (1 - s1) + w[2] * (1 - s2) * (1 - s2);
+            // A grid step of 0.005 in s2 costs at most ~(0.0025)^2 (w1 + w2) near the optimum.
+            EXPECT_LE(cost, best + 1e-5 * (w[1] + w[2])) << trial << " channel " << c;
+
+            double lo = 0.0;
+            double hi = 1.0;
+            while (sh::minimumIrradiance(sh::applyWindow(set, Order::L2, float(hi)), Order::L2, c)
+                       .value < target) {
+                lo = hi;
+                hi *= 2.0;
+            }
+            for (int step = 0; step < 50; ++step) {
+                const double mid = 0.5 * (lo + hi);
+                (sh::minimumIrradiance(sh::applyWindow(set, Order::L2, float(mid)), Order::L2, c)
+                             .value >= target
+                     ? hi
+                     : lo) = mid;
+            }
+            const double t1 = 1.0 / (1.0 + 4.0 * hi);
+            const double t2 = 1.0 / (1.0 + 36.0 * hi);
+            const double sloan = w[1] * (1 - t1) * (1 - t1) + w[2] * (1 - t2) * (1 - t2);
+            EXPECT_LE(cost, sloan * (1.0 + 1e-6)) << trial << " channel " << c;
+        }
+    }
+}
+
+TEST(ShDering, NonNegativeSetIsUnchangedBitForBit) {
+    // A constant, a mild directional lobe on a strong ambient, and what deringing returned
+    // (deringing is idempotent): all come back as they went in, for both storages.
+    ShRgb constant;
+    constant.rgb[0] = glm::vec3(1.0f, 2.0f, 3.0f);
+    ShRgb mild = sh::projectDelta(glm::normalize(glm::vec3(1, 2, 3)), glm::vec3(0.1f), Order::L2);
+    mild.rgb[0] += glm::vec3(1.0f);
+    const ShRgb deringed =
+        sh::deringIrradiance(sh::projectDelta(glm::vec3(0, 0, 1), glm::vec3(5.0f), Order::L2),
+                             Order::L2)
+            .sh;
+    const ShRgb deringed_half =
+        sh::deringIrradiance(sh::projectDelta(glm::vec3(0, 0, 1), glm::vec3(5.0f), Order::L2),
+                             Order::L2, sh::Rounding::Float16)
+            .sh;
+    for (const sh::Rounding rounding : {sh::Rounding::Float32, sh::Rounding::Float16}) {
+        for (const ShRgb& set : {constant, mild, ShRgb{},
+                                 rounding == sh::Rounding::Float32 ? deringed : deringed_half}) {
+            const sh::DeringResult r = sh::deringIrradiance(set, Order::L2, rounding);
+            EXPECT_FALSE(r.changed());
+            EXPECT_EQ(r.sh, set);
+            EXPECT_EQ(r.relativeChange, 0.0f);
+            EXPECT_EQ(r.band1Scale, glm::vec3(1.0f));
+            EXPECT_EQ(r.band2Scale, glm::vec3(1.0f));
+        }
+    }
+}
+
+TEST(ShDering, ChannelsAreWindowedEachOnItsOwn) {
+    // A red-heavy light over a blue-heavy ambient: red rings most, green less, blue not at
+    // all. Each channel gets its own window, and blue is left exactly as it was.
+    const glm::vec3 d = glm::normalize(glm::vec3(0.5f, -0.2f, 0.4f));
+    ShRgb set = sh::projectDelta(d, glm::vec3(4.0f, 2.0f, 1.0f), Order::L2);
+    set.rgb[0] += glm::vec3(0.05f, 0.05f, 2.0f);
+    const sh::DeringResult r = sh::deringIrradiance(set, Order::L2);
+    EXPECT_EQ(r.changedChannels, 3); // red and green
+    EXPECT_LT(r.band1Scale.x, r.band1Scale.y);
+    EXPECT_EQ(r.band1Scale.z, 1.0f);
+    EXPECT_EQ(r.band2Scale.z, 1.0f);
+    for (int i = 0; i < 9; ++i) {
+        EXPECT_EQ(r.sh.rgb[i].z, set.rgb[i].z) << i;
+    }
+    EXPECT_EQ(r.sh.rgb[0], set.rgb[0]);
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_GE(sh::minimumIrradiance(r.sh, Order::L2, c).value,
+                  sh::kDeringMargin * sh::meanIrradiance(set, c));
+    }
+}
+
+TEST(ShDering, ChannelWithoutPositiveMeanBecomesZero) {
+    // L00 < 0 (noise) or = 0 under a non-zero lobe: no window helps, the channel becomes zero
+    // (E = 0), and the other channels are unaffected. A channel of zeros stays as it is.
+    RandomDirections random;
+    ShRgb set = sh::projectDelta(random.next(), glm::vec3(1.0f), Order::L2);
+    set.rgb[0] = glm::vec3(1.0f, -0.1f, 0.0f);
+    const sh::DeringResult r = sh::deringIrradiance(set, Order::L2);
+    EXPECT_EQ(r.zeroedChannels, 6); // green and blue
+    for (int i = 0; i < 9; ++i) {
+        EXPECT_EQ(r.sh.rgb[i].y, 0.0f);
+        EXPECT_EQ(r.sh.rgb[i].z, 0.0f);
+        EXPECT_EQ(r.sh.rgb[i].x, set.rgb[i].x) << "red's E >= 0 already (mean 1 over a unit delta)";
+    }
+    EXPECT_EQ(r.minAfter.y, 0.0);
+
+    const sh::DeringResult zero = sh::deringIrradiance(ShRgb{}, Order::L2);
+    EXPECT_FALSE(zero.changed());
+    EXPECT_EQ(zero.sh, ShRgb{});
+}
+
+TEST(ShDering, HalfStorageIsCheckedAsStored) {
+    // Windows solved for float and then rounded to half dip below the margin on some sets (the
+    // rounding moves E by ~2^-11 of its terms); solved for half, they never do.
+    RandomDirections random;
+    int float_window_fails_as_half = 0;
+    for (int trial = 0; trial < 200; ++trial) {
+        const ShRgb set = randomRinging(random, Order::L2);
+        const ShRgb as_float = sh::deringIrradiance(set, Order::L2).sh;
+        const ShRgb as_half = sh::roundTo(
+            sh::deringIrradiance(set, Order::L2, sh::Rounding::Float16).sh, sh::Rounding::Float16);
+        const ShRgb float_rounded = sh::roundTo(as_float, sh::Rounding::Float16);
+        for (int c = 0; c < 3; ++c) {
+            const double mean = sh::meanIrradiance(float_rounded, c);
+            float_window_fails_as_half +=
+                sh::minimumIrradiance(float_rounded, Order::L2, c).value < sh::kDeringMargin * mean
+                    ? 1
+                    : 0;
+            EXPECT_GE(sh::minimumIrradiance(as_half, Order::L2, c).value,
+                      sh::kDeringMargin * sh::meanIrradiance(as_half, c));
+        }
+    }
+    std::printf("[dering half] %d channels deringed for float fall below the margin as half\n",
+                float_window_fails_as_half);
+    EXPECT_GT(float_window_fails_as_half, 0);
+}
+
+TEST(ShDering, UnstorableValuesAreLeftForMakeVolume) {
+    ShRgb set = sh::projectDelta(glm::vec3(0, 1, 0), glm::vec3(1.0f), Order::L2);
+    set.rgb[3].x = std::numeric_limits<float>::quiet_NaN();
+    EXPECT_FALSE(sh::deringIrradiance(set, Order::L2).changed());
+    ShRgb big = sh::projectDelta(glm::vec3(0, 1, 0), glm::vec3(1e6f), Order::L2);
+    EXPECT_FALSE(sh::deringIrradiance(big, Order::L2, sh::Rounding::Float16).changed());
+    EXPECT_TRUE(sh::deringIrradiance(big, Order::L2, sh::Rounding::Float32).changed());
+}
+
+TEST(ShDering, ScaleBandsScalesEachBandPerChannel) {
+    RandomDirections random;
+    const ShRgb set = randomSh(random);
+    const glm::vec3 s1(0.5f, 0.25f, 1.0f);
+    const glm::vec3 s2(0.1f, 1.0f, 0.0f);
+    const ShRgb scaled = sh::scaleBands(set, Order::L2, s1, s2);
+    for (int i = 0; i < 9; ++i) {
+        const glm::vec3 expected = i == 0 ? glm::vec3(1.0f) : (sh::bandOf(i) == 1 ? s1 : s2);
+        EXPECT_EQ(scaled.rgb[i], set.rgb[i] * expected) << i;
+    }
+    const ShRgb l1 = sh::scaleBands(set, Order::L1, s1, s2);
+    for (int i = 4; i < 9; ++i) {
+        EXPECT_EQ(l1.rgb[i], set.rgb[i]) << "L1 leaves the unused entries alone";
+    }
 }
 
 TEST(ShDering, ApplyWindowScalesEachBand) {
@@ -617,7 +880,7 @@ TEST(ShDering, ApplyWindowScalesEachBand) {
 TEST(ShFibonacci, MatchesFormulaAndIsUnitLength) {
     // Float output of a double formula: half an ulp of values <= 1, with room.
     constexpr double kDirectionTolerance = 1e-6;
-    for (const int n : {1, 2, 7, sh::kDeringTestNormals, 100000}) {
+    for (const int n : {1, 2, 7, 512, 100000}) {
         for (int i = 0; i < n; i += std::max(1, n / 97)) {
             const double y = 1.0 - (2.0 * i + 1.0) / n;
             const double phi = i * kPi * (3.0 - std::sqrt(5.0));

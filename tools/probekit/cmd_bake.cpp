@@ -321,6 +321,9 @@ nlohmann::json makeReport(const BakeOptionsCli& o, const baker::BakeConfig& conf
         {"mrays_per_second", s.mraysPerSecond},
         {"invalid_probes", s.invalidProbes},
         {"relocated_probes", s.relocatedProbes},
+        {"deringed_probes", s.deringedProbes},
+        {"dering_mean_change", s.deringMeanChange},
+        {"dering_max_change", s.deringMaxChange},
         {"peak_memory_bytes", s.peakMemoryBytes},
         {"predicted_peak_bytes", s.predictedPeakBytes},
         {"predicted_memory",
@@ -375,6 +378,11 @@ void printSummary(const BakeOptionsCli& o, const baker::BakeConfig& config,
         std::printf("  %llu probes inside geometry baked at the nearest free point instead "
                     "(validity.relocate)\n",
                     count(s.relocatedProbes));
+    }
+    if (config.dering) {
+        std::printf("  deringed %llu probes (irradiance changed by %.3g RMS on average, %.3g at "
+                    "most)\n",
+                    count(s.deringedProbes), s.deringMeanChange, s.deringMaxChange);
     }
     if (config.method == baker::Method::Vpl) {
         std::printf("  VPLs: %llu requested, %llu placed from %llu light paths, %.1f clusters "

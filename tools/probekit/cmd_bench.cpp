@@ -264,15 +264,21 @@ ExtraFigures extraFigures(const PvolFile& test, const PvolFile& reference,
     return f;
 }
 
-// The bake's float L2 volumes repacked as `variant`. A half overflow is the error makeVolume
-// gives (it names the volume and the value): the row records it, never an infinity.
-Result<PvolFile> repack(const PvolFile& baked, Variant variant) {
+// The bake's float L2 volumes (baked without deringing) repacked as `variant`, and deringed for
+// that order and storage as a dense bake of it would be when `dering`. A half overflow is the error
+// makeVolume gives (it names the volume and the value): the row records it, never an infinity.
+Result<PvolFile> repack(const PvolFile& baked, Variant variant, bool dering) {
     PvolFile out;
     out.metadata = baked.metadata;
+    const sh::Rounding rounding =
+        variant.storage == Storage::Float16 ? sh::Rounding::Float16 : sh::Rounding::Float32;
     for (const Volume& v : baked.volumes) {
         std::vector<sh::ShRgb> probes(v.probeCount());
         for (size_t i = 0; i < probes.size(); ++i) {
             probes[i] = variant.order == sh::Order::L1 ? sh::truncateToL1(v.probe(i)) : v.probe(i);
+            if (dering) {
+                probes[i] = sh::deringIrradiance(probes[i], variant.order, rounding).sh;
+            }
         }
         VolumeDesc desc = v.desc;
         desc.storage = variant.storage;
@@ -436,6 +442,7 @@ int runBench(const BenchOptions& o) {
     } else {
         baker::BakeConfig rc = base;
         rc.method = baker::Method::Path;
+        rc.dering = false; // the reference keeps the path method's own coefficients
         rc.seed = ref_seed;
         rc.path.samples =
             o.referenceSamples.value_or(o.quick ? kReferenceSamplesQuick : kReferenceSamplesFull);
@@ -478,6 +485,7 @@ int runBench(const BenchOptions& o) {
         const Run& run = runs[ri];
         baker::BakeConfig c = base;
         run.apply(c);
+        c.dering = false; // repack derings each variant as its own bake would
         const auto start = std::chrono::steady_clock::now();
         Result<baker::BakeResult> r = baker::bake(scene.value(), c, bake_options);
         const double seconds =
@@ -501,7 +509,7 @@ int runBench(const BenchOptions& o) {
             const std::string prefix = run.method + "," + csvField(run.parameters) + "," + format +
                                        "," + order + "," + number(seconds) + "," +
                                        std::to_string(r.value().stats.rays) + ",";
-            Result<PvolFile> packed = repack(r.value().file, variant);
+            Result<PvolFile> packed = repack(r.value().file, variant, base.dering);
             if (!packed) {
                 csv += prefix + "0,nan,nan,nan,nan,nan," +
                        std::to_string(r.value().stats.invalidProbes) + ",nan,nan,nan,nan,nan," +

@@ -224,6 +224,10 @@ struct BakeConfig {
     // Store per-probe occluder distances (formats/.../visibility.hpp) so that interpolation
     // between probes does not carry light through walls; 54 rays per probe.
     bool visibility = true;
+    // Window every stored probe's SH bands 1 and 2 so that its irradiance is non-negative for
+    // every normal (sh::deringIrradiance, formats/.../sh.hpp; README, "Deringing"): SH
+    // truncation otherwise gives negative irradiance facing away from a small bright light.
+    bool dering = true;
     // The bake's predicted peak memory (the memory model, README) may not exceed this, nor
     // 256 MiB when less (error); dense volumes' grids may not exceed it either. Bricked volumes:
     // their refinement uses what is left of it, and it is the budget for their GPU bytes
@@ -344,6 +348,14 @@ struct BakeStats {
     uint64_t rays = 0;
     double mraysPerSecond = 0.0;
     uint64_t invalidProbes = 0;
+    // BakeConfig::dering: stored probes whose coefficients a deringing pass changed, and the
+    // relative RMS change of their irradiance over the sphere (sh::DeringResult::
+    // relativeChange; a bricked probe changed before and after stitching counts once, with its
+    // larger change): mean over them and largest. A bricked border probe stitched from deringed
+    // probes passes as it is and is not counted.
+    uint64_t deringedProbes = 0;
+    double deringMeanChange = 0.0;
+    double deringMaxChange = 0.0;
     uint64_t peakMemoryBytes = 0; // the process's peak resident set (getrusage)
     // The memory model's prediction of that peak, made before the bake allocated anything big
     // (README, max_memory_mb): the phase that peaks and its terms (what, bytes). For bricked

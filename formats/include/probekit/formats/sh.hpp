@@ -93,44 +93,99 @@ glm::vec3 irradiance(const ShRgb& sh, Order order, glm::vec3 normal);
 // Keeps bands 0..1 and zeroes band 2.
 ShRgb truncateToL1(const ShRgb& sh);
 
-// Deringing: SH truncation rings, and a strong light from one side yields negative irradiance
-// on the opposite side. The window scales band l by 1 / (1 + lambda * l^2 (l + 1)^2), the
-// minimum-roughness (Laplacian-penalised) fit of Sloan, "Deringing Spherical Harmonics"
-// (SIGGRAPH Asia 2017). deringIrradiance finds the smallest lambda (bisection, to 1e-4
-// relative) for which E(n) >= 0 on every channel over a dense set of test normals
-// (`kDeringTestNormals` spherical-Fibonacci points) and applies it. Band 0 is never changed,
-// so the mean irradiance over the sphere is preserved exactly.
-constexpr int kDeringTestNormals = 512;
+// ---- Deringing ----
+//
+// SH truncation rings: a strong light from one side gives negative irradiance on the other (a
+// lone delta light's L2 irradiance dips to -0.04 of its peak, its L1 irradiance to -1/3).
+// Deringing scales band 1 and band 2 of each channel by factors s1, s2 in [0, 1] (a band
+// window, as Sloan's "Deringing Spherical Harmonics", SIGGRAPH Asia 2017, whose
+// 1 / (1 + lambda l^2 (l + 1)^2) is one curve through that square) so that the irradiance is
+// non-negative on the whole sphere, and among those windows takes the one that changes E least
+// in RMS over the sphere. Band 0 (the mean) is never changed. Because E - E_windowed lives in
+// bands 1..2 and the truncation error in bands >= 3, that is also the window that adds the least
+// RMS error against any true irradiance whose projection the probe holds. For a lone delta
+// light (the worst case) it changes E by 0.106 RMS (L2: s1 = 0.858, s2 = 0.909; L1: s1 = 1/2,
+// 0.378 RMS), where Sloan's smallest sufficient lambda changes the L2 irradiance by 0.419.
+
+// The exact minimum of one channel's E over the unit sphere. On the sphere E is
+// e0 + b.n + n^T M n (band 0 a constant, band 1 linear, band 2 a traceless quadratic form;
+// L1: M = 0), and its minimum is that of the trust-region problem min n^T M n + b.n, |n| = 1,
+// solved through its Lagrangian dual (strong duality holds for one quadratic constraint):
+// max over mu < d_min of mu - sum_i beta_i^2 / (4 (d_i - mu)), with M = V diag(d) V^T (cyclic
+// Jacobi, double) and beta = V^T b. The dual is concave and its maximiser solves the secular
+// equation sum_i beta_i^2 / (4 (d_i - mu)^2) = 1 in [d_min - |b| / 2, d_min]: Newton on
+// 1 / |n(mu)| = 1 (Moré and Sorensen), safeguarded by that bracket with geometric bisection, to
+// double resolution. The "hard case" (beta_min = 0: the ring-shaped minimum of an axially
+// symmetric lobe, a lone light's) is the limit mu -> d_min, taken when |n| <= 1 still holds
+// 1e-17 of the matrix's scale from d_min. `value` is the dual value at the mu found: by weak
+// duality a lower bound of the minimum for any mu < d_min, so never above the true minimum but
+// by rounding (~1e-16 of the terms), and below it by as little (tested against 200001 normals).
+// `normal` is the primal point it gives (unit length), where E takes that value up to the same
+// rounding. Coefficients are taken as double; the basis constants are the float ones
+// sh::irradiance uses.
+struct IrradianceMinimum {
+    double value = 0.0;         // W/m^2
+    glm::dvec3 normal{0, 1, 0}; // a unit normal where E takes (within rounding) that value
+};
+IrradianceMinimum minimumIrradiance(const ShRgb& sh, Order order, int channel);
+
+// Mean irradiance over the sphere of one channel, pi * kY00 * L00 (W/m^2).
+double meanIrradiance(const ShRgb& sh, int channel);
+
+// What deringing guarantees, per channel: the minimum of E over the sphere (as above, of the
+// coefficients as stored) is at least kDeringMargin x the channel's mean irradiance. The margin
+// keeps the float rounding of evaluating and interpolating stored probes (a few 1e-7 of the
+// mean: the coefficients of a non-negative E are bounded by a small multiple of its mean) from
+// reaching below zero, and costs nothing visible (1e-4 of the mean). Interpolation with
+// non-negative weights keeps the guarantee: E and the mean are both linear in the
+// coefficients.
+constexpr double kDeringMargin = 1e-4;
+
+// The storage the coefficients go to: deringing checks them after its rounding.
+enum class Rounding : uint8_t {
+    Float32, // the floats as they are
+    Float16, // IEEE binary16, round-to-nearest-even, as makeVolume stores half texels
+};
+
+// The coefficients as stored with `rounding` and read back (Float32: unchanged). Values beyond
+// the half range become infinite (makeVolume refuses them).
+ShRgb roundTo(const ShRgb& sh, Rounding rounding);
 
 struct DeringResult {
-    ShRgb sh;                 // windowed coefficients
-    float lambda = 0.0f;      // window strength applied (0 when nothing was negative)
-    float minIrradiance = 0;  // most negative E over the test normals before windowing (<= 0)
-    float relativeChange = 0; // RMS change of E over the sphere / RMS of E: the stated cost
+    ShRgb sh;                    // deringed coefficients (rounded as stored where changed)
+    glm::vec3 band1Scale{1.0f};  // s1 per channel (1 where nothing changed)
+    glm::vec3 band2Scale{1.0f};  // s2 per channel (L2 only; 1 for L1)
+    glm::dvec3 minBefore{0.0};   // exact minimum of E per channel before, as stored
+    glm::dvec3 minAfter{0.0};    // and after (>= kDeringMargin x the channel's mean)
+    uint8_t changedChannels = 0; // bit c: channel c was windowed or zeroed
+    uint8_t zeroedChannels = 0;  // bit c: channel c's mean <= 0 as stored: all zero now
+    float relativeChange = 0.0f; // RMS change of E over the sphere / RMS of E (all channels)
+    bool changed() const { return changedChannels != 0; }
 };
-DeringResult deringIrradiance(const ShRgb& sh, Order order);
 
-// Applies the window above with a given lambda (>= 0).
+// Deringing of one probe. Each channel is checked on the coefficients rounded as stored: when
+// its exact minimum is at least kDeringMargin x its mean it is left as it is, bit for bit
+// (a probe whose every channel passes comes back identical). Otherwise:
+//  * mean <= 0 as stored (a probe of zeros, or a negative mean from noise): no window helps,
+//    and the channel becomes zero (E = 0), band 0 included;
+//  * else (s1, s2) minimise (1 - s1)^2 |E_1|^2 + (1 - s2)^2 |E_2|^2 (the squared RMS change)
+//    subject to min E >= a target a little above the margin: a convex problem (E is linear in
+//    (s1, s2), so the feasible set is convex; it is symmetric in s1, as band 1 is odd and band 2
+//    even). For each s2 the largest feasible s1 is found by bisection on the exact minimum
+//    above, and the best s2 by golden-section search over [0, the largest s2 with s1 = 0
+//    feasible]; L1 has the closed form s1 = (mean - target) / |E_1 amplitude|. The windowed
+//    coefficients are rounded as stored and checked again; if the rounding took the minimum
+//    below the margin the target is raised and the window solved again, and as the last resort
+//    bands 1 and 2 of the channel are zeroed (E = its mean, which always passes).
+// Non-finite coefficients, or Float16 ones beyond the half range, are returned unchanged
+// (makeVolume refuses them with a message). Deterministic: pure double arithmetic.
+DeringResult deringIrradiance(const ShRgb& sh, Order order, Rounding rounding = Rounding::Float32);
+
+// Scales band 1 of channel c by band1[c] and band 2 by band2[c] (each in [0, 1]).
+ShRgb scaleBands(const ShRgb& sh, Order order, glm::vec3 band1, glm::vec3 band2);
+
+// Sloan's window: scales band l by 1 / (1 + lambda l^2 (l + 1)^2) (lambda >= 0) on every channel.
 ShRgb applyWindow(const ShRgb& sh, Order order, float lambda);
-
-// The closest SH (in the L2 norm of irradiance over the sphere) whose irradiance is non-negative
-// for every unit normal: per channel, minimise |E' - E|^2 subject to E'(n) >= margin for all n,
-// margin = relative_margin x the channel's mean irradiance over the sphere (pi Y00 L00, at least
-// 0), so that float rounding of interpolation and storage cannot dip below zero. Solved by an
-// active-set loop: the lowest point of E' over the sphere (256 spherical-Fibonacci seeds, the
-// lowest 4 refined by projected gradient descent) is added as a constraint and the projection
-// onto all constraints so far (a 9-dimensional quadratic programme, solved through its
-// non-negative least-squares dual) is recomputed, until the lowest point meets the margin; if
-// 24 points do not suffice, band 0 is raised by what is missing. A probe that already meets the
-// margin is returned unchanged, bit for bit. Unlike a window, the change is confined to where
-// E was negative and its surroundings, so the sides facing the light keep their contrast.
-struct NonNegativeResult {
-    ShRgb sh;
-    bool changed = false;
-    float minIrradiance = 0.0f;  // the lowest E over the sphere before, over channels (<= 0)
-    float relativeChange = 0.0f; // |E' - E| / |E| over the sphere, three channels together
-};
-NonNegativeResult projectNonNegative(const ShRgb& sh, Order order, float relative_margin);
 
 // Spherical-Fibonacci direction i of n (the point set reference.json uses):
 // y = 1 - (2i + 1) / n, phi = i * pi * (3 - sqrt(5)), dir = (sqrt(1 - y^2) cos phi, y,
