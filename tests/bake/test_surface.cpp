@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include <glm/vector_relational.hpp>
 #include <gtest/gtest.h>
 
 #include "bake_test_support.hpp"
@@ -208,10 +209,12 @@ TEST(SurfaceReference, DeterministicAndItsStandardErrorCoversTheSeedSpread) {
 }
 
 // A face whose nearest lattice points lie inside the solid it bounds: the short block's front
-// face against the README example's 8^3 grid. Hidden, those probes left the face to the dark
-// probes of the box's opening (mean 0.21x measured before relocation); relocated out of the
-// block they light it. Tolerances: the reference's own noise at 2048 samples is about 4% per
-// pixel, the 1024-sample probes' about the same.
+// face against an 8^3 grid (the README example's former). Hidden, those probes leave the face to
+// the dark probes of the box's opening; relocated out of the block they light it. Measured
+// (1024-sample probes, 2048-sample reference, deringing on): mean ratio 0.82 relocated, 0.58
+// hidden (0.21 before deringing). The mean over 768 pixels carries well under 1% of the
+// reference's 8% per-pixel noise, and the probes' noise moves it by about 2% between seeds, so
+// the bounds below leave several times that on each side.
 TEST(SurfaceAccuracy, AFaceBesideProbesInsideASolidIsLitByRelocatedProbes) {
     const Scene scene = test::generatedScene("cornell");
     const runtime::SurfaceReferenceImage r = referenceImage(scene, shortBlockFace(), 32, 24, 2048);
@@ -222,11 +225,49 @@ TEST(SurfaceAccuracy, AFaceBesideProbesInsideASolidIsLitByRelocatedProbes) {
     const runtime::SurfaceError hidden =
         compareOrFail(sampleFile(bakeOrFail(scene, config), r), r, "face, hidden");
     ASSERT_GT(relocated.compared, 600u);
-    EXPECT_GT(relocated.meanRatio, 0.7);
-    EXPECT_LT(relocated.meanRatio, 1.3);
-    EXPECT_LT(relocated.medianAbsError, 0.35);
-    // The failure the test guards against: without relocation the face gets well under half.
-    EXPECT_LT(hidden.meanRatio, 0.5);
+    EXPECT_GT(relocated.meanRatio, 0.75);
+    EXPECT_LT(relocated.meanRatio, 1.25);
+    EXPECT_LT(relocated.medianAbsError, 0.3);
+    EXPECT_EQ(relocated.shareNegative, 0.0);
+    // The failure the test guards against: hidden, the face gets well under its light.
+    EXPECT_LT(hidden.meanRatio, 0.68);
+}
+
+// No negative light anywhere (deringing, README "Surface accuracy"): every surface pixel of the
+// Cornell box's front view under its small emitter, for L2 and L1, half and float, gets E >= 0
+// from the CPU sampler (which the GPU shader mirrors term for term); without deringing the same
+// bakes light some pixels negative, so the test can fail.
+TEST(SurfaceAccuracy, NoPixelGetsNegativeLightUnderASmallEmitter) {
+    const Scene scene = test::generatedScene("cornell");
+    // Only the points and normals matter here: 1 sample per pixel.
+    const runtime::SurfaceReferenceImage r =
+        referenceImage(scene, cornellFront(scene, 4.0f / 3.0f), 96, 72, 1);
+    for (const sh::Order order : {sh::Order::L2, sh::Order::L1}) {
+        for (const Storage storage : {Storage::Float16, Storage::Float32}) {
+            baker::BakeConfig config = cornellConfig(8, 256);
+            config.volumes[0].shOrder = order;
+            config.volumes[0].storage = storage;
+            const std::vector<glm::vec3> e = sampleFile(bakeOrFail(scene, config), r);
+            config.dering = false;
+            const std::vector<glm::vec3> raw = sampleFile(bakeOrFail(scene, config), r);
+            size_t negative = 0, negative_raw = 0, surface = 0;
+            for (size_t i = 0; i < r.hit.size(); ++i) {
+                if (!r.hit[i]) {
+                    continue;
+                }
+                ++surface;
+                negative += glm::any(glm::lessThan(e[i], glm::vec3(0.0f))) ? 1 : 0;
+                negative_raw += glm::any(glm::lessThan(raw[i], glm::vec3(0.0f))) ? 1 : 0;
+            }
+            std::printf("[surface negative] L%d %s: %zu of %zu pixels negative deringed, %zu "
+                        "without\n",
+                        order == sh::Order::L2 ? 2 : 1,
+                        storage == Storage::Float16 ? "half" : "float", negative, surface,
+                        negative_raw);
+            EXPECT_EQ(negative, 0u);
+            EXPECT_GT(negative_raw, 0u);
+        }
+    }
 }
 
 } // namespace probekit
