@@ -2,9 +2,10 @@
 # Per-pixel surface accuracy of the bundled scenes (README, "Surface accuracy"): for each view, a
 # path-traced surface reference (probekit surface-reference), then the volume of each bake
 # sampled at its pixels by the CPU sampler (probekit surface-error --volume), as a markdown
-# table. "before" bakes with relocation and the non-negative projection off (validity.relocate,
-# dering), "after" with the defaults; "seed 2" repeats "after" with another seed, so
-# bake noise shows beside the error. References are kept in the output folder and reused.
+# table. "before" bakes with relocation and deringing off (validity.relocate, dering) and, on
+# the Cornell box, the bundled example's former config; "after" with the defaults and today's
+# example; "seed 2" repeats "after" with another seed, so bake noise shows beside the error.
+# References are kept in the output folder and reused.
 # Usage: tools/bench-surface.sh [PROBEKIT] [OUT_DIR] [REFERENCE_SAMPLES]
 set -euo pipefail
 pk=${1:-build/tools/probekit}
@@ -29,13 +30,26 @@ PY
 cat >"$out/thin-wall-base.json" <<'JSON'
 {"volumes": [{"name": "rooms", "resolution": [16, 8, 8]}]}
 JSON
+# The bundled example before issue 26: 8^3 over the box and a 4^3 corner volume by the light,
+# 8,192 samples per probe.
+cat >"$out/previous-example.json" <<'JSON'
+{"method": "path", "seed": 1, "path": {"samples": 8192, "max_bounces": 64},
+ "environment": {"type": "black"},
+ "volumes": [
+  {"name": "box", "bounds": {"mode": "auto-world", "padding": 0.0}, "resolution": [8, 8, 8],
+   "position": "center", "format": "half", "sh_order": 2},
+  {"name": "light-corner",
+   "bounds": {"mode": "custom", "min": [0.2, 0.34, 0.15], "max": [0.4, 0.54, 0.35]},
+   "resolution": "auto", "density": 20, "max_resolution": 8, "position": "corner",
+   "format": "float", "sh_order": 2, "blend_priority": 1, "fade_distance": 0.05}]}
+JSON
 
-row() { # row LABEL SCENE BASE.json REFERENCE.exr [EXTRA surface-error ARGS]
-    local label=$1 scene=$2 base=$3 ref=$4
-    local cells=""
-    for variant in "before false false 1" "after true true 1" "seed2 true true 2"; do
+row() { # row LABEL SCENE BEFORE.json AFTER.json REFERENCE.exr
+    local label=$1 scene=$2 before=$3 after=$4 ref=$5
+    for variant in "before false false 1 $before" "after true true 1 $after" \
+        "seed2 true true 2 $after"; do
         set -- $variant
-        config "$label-$1" "$base" "$2" "$3" "$4"
+        config "$label-$1" "$5" "$2" "$3" "$4"
         "$pk" bake "$out/$scene.gltf" -o "$out/$label-$1.pvol" --config "$out/$label-$1.json" \
             >/dev/null 2>"$out/$label-$1.log"
         "$pk" surface-error "$ref" --volume "$out/$label-$1.pvol" --json \
@@ -75,7 +89,9 @@ reference thin-wall-dark thin-wall $((16 * samples)) --camera 2.5,1.8,-1.9,-0.5,
 
 echo "| view | bake | median abs error | mean E/E_ref | under 0.5x | over 2x | E < 0 | reference noise floor |"
 echo "|---|---|---|---|---|---|---|---|"
-row cornell-front cornell "$here/examples/cornell-bake.json" "$out/cornell-front-reference.exr"
-row cornell-face cornell "$here/examples/cornell-bake.json" "$out/cornell-face-reference.exr"
-row thin-wall-lit thin-wall "$out/thin-wall-base.json" "$out/thin-wall-lit-reference.exr"
-row thin-wall-dark thin-wall "$out/thin-wall-base.json" "$out/thin-wall-dark-reference.exr"
+example="$here/examples/cornell-bake.json"
+row cornell-front cornell "$out/previous-example.json" "$example" "$out/cornell-front-reference.exr"
+row cornell-face cornell "$out/previous-example.json" "$example" "$out/cornell-face-reference.exr"
+base="$out/thin-wall-base.json"
+row thin-wall-lit thin-wall "$base" "$base" "$out/thin-wall-lit-reference.exr"
+row thin-wall-dark thin-wall "$base" "$base" "$out/thin-wall-dark-reference.exr"

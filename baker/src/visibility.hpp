@@ -71,7 +71,12 @@ std::vector<uint8_t> traceVolumeVisibility(const RayTracer& tracer, const Volume
 constexpr int kRelocationDirections = 64;
 constexpr int kRelocationTestRays = 64;
 constexpr int kRelocationCandidates = 4;
-constexpr float kRelocationMargin = 0.05f;
+// Half a cell beyond the exit: as far from the face as a centre-mode grid's outer probes are
+// from the walls it fills, so a relocated probe reads like its neighbours in free space. 5% of
+// a cell (right at the face) measured the same median per pixel on the Cornell 16^3 example
+// (8.3%) but drew the relocated probes as a checker on the blocks' faces (direct light changes
+// fast within half a cell of a face).
+constexpr float kRelocationMargin = 0.5f;
 std::optional<glm::vec3> relocationTarget(const RayTracer& tracer, glm::vec3 p,
                                           float max_distance, float margin_scale,
                                           float backface_threshold);

@@ -211,8 +211,8 @@ TEST(SurfaceReference, DeterministicAndItsStandardErrorCoversTheSeedSpread) {
 // A face whose nearest lattice points lie inside the solid it bounds: the short block's front
 // face against an 8^3 grid (the README example's former). Hidden, those probes leave the face to
 // the dark probes of the box's opening; relocated out of the block they light it. Measured
-// (1024-sample probes, 2048-sample reference, deringing on): mean ratio 0.82 relocated, 0.58
-// hidden (0.21 before deringing). The mean over 768 pixels carries well under 1% of the
+// (1024-sample probes, 2048-sample reference, deringing on): mean ratio 0.74 relocated (half a
+// cell in front of the face), 0.58 hidden (0.21 before deringing). The mean over 768 pixels carries well under 1% of the
 // reference's 8% per-pixel noise, and the probes' noise moves it by about 2% between seeds, so
 // the bounds below leave several times that on each side.
 TEST(SurfaceAccuracy, AFaceBesideProbesInsideASolidIsLitByRelocatedProbes) {
@@ -225,12 +225,13 @@ TEST(SurfaceAccuracy, AFaceBesideProbesInsideASolidIsLitByRelocatedProbes) {
     const runtime::SurfaceError hidden =
         compareOrFail(sampleFile(bakeOrFail(scene, config), r), r, "face, hidden");
     ASSERT_GT(relocated.compared, 600u);
-    EXPECT_GT(relocated.meanRatio, 0.75);
+    EXPECT_GT(relocated.meanRatio, 0.68);
     EXPECT_LT(relocated.meanRatio, 1.25);
-    EXPECT_LT(relocated.medianAbsError, 0.3);
+    EXPECT_LT(relocated.medianAbsError, 0.36);
     EXPECT_EQ(relocated.shareNegative, 0.0);
     // The failure the test guards against: hidden, the face gets well under its light.
-    EXPECT_LT(hidden.meanRatio, 0.68);
+    EXPECT_LT(hidden.meanRatio, 0.64);
+    EXPECT_GT(relocated.meanRatio - hidden.meanRatio, 0.1);
 }
 
 // No negative light anywhere (deringing, README "Surface accuracy"): every surface pixel of the

@@ -402,6 +402,23 @@ interrupted() { # interrupted SIGNAL OUTPUT COMMAND...
         echo "FAIL: $sig during the write of $out: paused $([[ -e paused.marker ]] && echo yes || echo no), exit $rc (want $want), temporaries left: ${left:-none}"
     fi
 }
+# Surface accuracy: a per-pixel reference, then a volume's error against it; errors name the file.
+expect 0 "wrote ref.exr: 32x24, [0-9]+ surface pixels, 16 samples each" -- \
+    "$pk" surface-reference cornell.gltf -o ref.exr --camera-from -z --size 32,24 --samples 16
+expect 0 "negative E +0.0000" -- \
+    "$pk" surface-error ref.exr --volume small.pvol --heatmap heat.png
+check "surface-error wrote its heat map" test -s heat.png
+expect 0 '"median_abs_error":' -- "$pk" surface-error ref.exr --volume small.pvol --json
+expect 2 "give either TEST.exr or --volume" -- "$pk" surface-error ref.exr
+expect 1 "small.pvol: not an image OpenImageIO can read" -- "$pk" surface-error ref.exr small.pvol
+expect 1 "heat.png: no channel A \(not written by probekit surface-reference\)" -- \
+    "$pk" surface-error heat.png --volume small.pvol
+expect 0 "wrote ref16.exr: 16x12" -- "$pk" surface-reference cornell.gltf -o ref16.exr --size 16,12 \
+    --samples 4
+expect 1 "ref.exr: 32x24, the reference is 16x12" -- "$pk" surface-error ref16.exr ref.exr
+expect 1 "missing.gltf" -- "$pk" surface-reference missing.gltf -o nothing.exr
+check "no reference left by a failed surface-reference" test ! -e nothing.exr
+
 if [[ -n $shim ]]; then
     cp small.pvol kept.pvol
     interrupted TERM kept.pvol "$pk" bake cornell.gltf -o kept.pvol --resolution 4,4,4 --samples 4
