@@ -762,12 +762,10 @@ Result<Volume> bakeBrickedVolume(BakeRun& run, const VolumeDesc& desc, const Vol
 // Relocation (visibility.hpp, relocationTarget): every invalid probe of a dense volume that
 // has free space within one cell is baked again there; those the bake finds valid there replace
 // it. Returns the moves (zero where a probe stays in place).
-std::vector<glm::vec3> relocateInvalidProbes(BakeRun& run, const VolumeDesc& desc,
-                                             std::span<const glm::vec3> positions,
-                                             std::span<const uint64_t> ids,
-                                             const ProbeBatchFn& bake_batch,
-                                             std::vector<sh::ShRgb>& probes,
-                                             std::vector<uint8_t>& validity) {
+std::vector<glm::vec3>
+relocateInvalidProbes(BakeRun& run, const VolumeDesc& desc, std::span<const glm::vec3> positions,
+                      std::span<const uint64_t> ids, const ProbeBatchFn& bake_batch,
+                      std::vector<sh::ShRgb>& probes, std::vector<uint8_t>& validity) {
     std::vector<glm::vec3> moves(positions.size(), glm::vec3(0.0f));
     std::vector<size_t> invalid;
     for (size_t i = 0; i < validity.size(); ++i) {
@@ -828,9 +826,8 @@ Result<Volume> bakeDenseVolume(BakeRun& run, const VolumeDesc& desc, const Probe
     std::vector<glm::vec3> moves;
     if (run.config.relocate) {
         moves = relocateInvalidProbes(run, desc, positions, ids, bake_batch, probes, validity);
-        result.stats.relocatedProbes +=
-            uint64_t(std::count_if(moves.begin(), moves.end(),
-                                   [](glm::vec3 m) { return m != glm::vec3(0.0f); }));
+        result.stats.relocatedProbes += uint64_t(std::count_if(
+            moves.begin(), moves.end(), [](glm::vec3 m) { return m != glm::vec3(0.0f); }));
     }
     const uint64_t invalid = uint64_t(std::count(validity.begin(), validity.end(), 0));
     result.stats.invalidProbes += invalid;

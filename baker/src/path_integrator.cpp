@@ -197,8 +197,8 @@ ProbeSample PathIntegrator::bakeAdaptive(glm::vec3 position, uint64_t probe_key,
     return result;
 }
 
-glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, float dir_pdf,
-                                           Rng& rng, PathStats& stats) const {
+glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, float dir_pdf, Rng& rng,
+                                           PathStats& stats) const {
     std::optional<Hit> hit = m_tracer.intersect(origin, dir);
     ++stats.rays;
     if (!hit) {
@@ -275,11 +275,9 @@ glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, floa
     return radiance;
 }
 
-PathIntegrator::SurfaceEstimate PathIntegrator::surfaceIrradiance(glm::vec3 position,
-                                                                  glm::vec3 geometric_normal,
-                                                                  glm::vec3 normal,
-                                                                  uint32_t samples,
-                                                                  uint64_t key) const {
+PathIntegrator::SurfaceEstimate
+PathIntegrator::surfaceIrradiance(glm::vec3 position, glm::vec3 geometric_normal, glm::vec3 normal,
+                                  uint32_t samples, uint64_t key) const {
     const ScopedFloatMode float_mode;
     const auto sobol_seed = uint32_t(key ^ (key >> 32));
     const glm::vec3 offset_origin = RayTracer::offsetOrigin(position, geometric_normal, normal);
@@ -295,7 +293,8 @@ PathIntegrator::SurfaceEstimate PathIntegrator::surfaceIrradiance(glm::vec3 posi
         glm::vec3 e = directLight(position, offset_origin, normal, rng, stats);
         if (cos_theta > 0.0f) {
             // Cosine sampling: L cos / pdf = pi L.
-            e += std::numbers::pi_v<float> * incidentRadiance(offset_origin, dir, cos_theta * kInvPi, rng, stats);
+            e += std::numbers::pi_v<float> *
+                 incidentRadiance(offset_origin, dir, cos_theta * kInvPi, rng, stats);
         }
         result.rays += stats.rays;
         const glm::dvec3 x(e);

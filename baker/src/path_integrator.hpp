@@ -141,7 +141,7 @@ public:
     // and the variance of the mean per channel (the sample variance / samples: an upper bound
     // for the stratified set).
     struct SurfaceEstimate {
-        glm::vec3 irradiance{0.0f};   // W/m^2
+        glm::vec3 irradiance{0.0f};     // W/m^2
         glm::vec3 varianceOfMean{0.0f}; // (W/m^2)^2
         uint64_t rays = 0;
     };

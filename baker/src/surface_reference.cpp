@@ -38,9 +38,10 @@ glm::vec3 shadingNormal(const Scene& scene, const Hit& hit) {
 
 } // namespace
 
-Result<SurfaceReference> traceSurfaceReference(
-    const Scene& scene, std::span<const SurfaceRay> rays, const SurfaceReferenceSettings& settings,
-    const std::function<void(size_t, size_t)>& progress) {
+Result<SurfaceReference>
+traceSurfaceReference(const Scene& scene, std::span<const SurfaceRay> rays,
+                      const SurfaceReferenceSettings& settings,
+                      const std::function<void(size_t, size_t)>& progress) {
     if (settings.samples < 1) {
         return makeError(ErrorCode::InvalidArgument, "surface reference: samples must be >= 1");
     }
@@ -70,17 +71,17 @@ Result<SurfaceReference> traceSurfaceReference(
             s.hit = true;
             s.triangle = hit->triangle;
             s.position = tracer.value()->surfacePoint(hit->triangle, hit->bary);
-            const glm::vec3 facing =
-                glm::dot(hit->geometricNormal, ray.direction) > 0.0f ? -hit->geometricNormal
-                                                                      : hit->geometricNormal;
+            const glm::vec3 facing = glm::dot(hit->geometricNormal, ray.direction) > 0.0f
+                                         ? -hit->geometricNormal
+                                         : hit->geometricNormal;
             glm::vec3 n = shadingNormal(scene, *hit);
             if (glm::dot(n, ray.direction) > 0.0f) {
                 n = -n;
             }
             s.normal = n;
-            const PathIntegrator::SurfaceEstimate e = integrator.surfaceIrradiance(
-                s.position, facing, n, settings.samples,
-                hashKeys(settings.seed, kSurfaceStream, uint64_t(i)));
+            const PathIntegrator::SurfaceEstimate e =
+                integrator.surfaceIrradiance(s.position, facing, n, settings.samples,
+                                             hashKeys(settings.seed, kSurfaceStream, uint64_t(i)));
             s.irradiance = e.irradiance;
             s.standardError = glm::sqrt(e.varianceOfMean);
             traced += e.rays;

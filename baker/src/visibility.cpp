@@ -112,9 +112,8 @@ std::vector<uint8_t> traceVolumeVisibility(const RayTracer& tracer, const Volume
     return out;
 }
 
-std::optional<glm::vec3> relocationTarget(const RayTracer& tracer, glm::vec3 p,
-                                          float max_distance, float margin_scale,
-                                          float backface_threshold) {
+std::optional<glm::vec3> relocationTarget(const RayTracer& tracer, glm::vec3 p, float max_distance,
+                                          float margin_scale, float backface_threshold) {
     struct Exit {
         float t;
         int direction;
@@ -132,8 +131,8 @@ std::optional<glm::vec3> relocationTarget(const RayTracer& tracer, glm::vec3 p,
         return a.t < b.t || (a.t == b.t && a.direction < b.direction);
     });
     for (int c = 0; c < std::min(found, kRelocationCandidates); ++c) {
-        const glm::vec3 dir = sh::fibonacciDirection(exits[size_t(c)].direction,
-                                                     kRelocationDirections);
+        const glm::vec3 dir =
+            sh::fibonacciDirection(exits[size_t(c)].direction, kRelocationDirections);
         const glm::vec3 q = p + dir * (exits[size_t(c)].t + kRelocationMargin * margin_scale);
         int back_faces = 0;
         for (int k = 0; k < kRelocationTestRays; ++k) {

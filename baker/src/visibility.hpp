@@ -77,8 +77,7 @@ constexpr int kRelocationCandidates = 4;
 // (8.3%) but drew the relocated probes as a checker on the blocks' faces (direct light changes
 // fast within half a cell of a face).
 constexpr float kRelocationMargin = 0.5f;
-std::optional<glm::vec3> relocationTarget(const RayTracer& tracer, glm::vec3 p,
-                                          float max_distance, float margin_scale,
-                                          float backface_threshold);
+std::optional<glm::vec3> relocationTarget(const RayTracer& tracer, glm::vec3 p, float max_distance,
+                                          float margin_scale, float backface_threshold);
 
 } // namespace probekit::baker

@@ -120,8 +120,8 @@ Result<SurfaceError> compareSurface(const std::vector<glm::vec3>& test,
         ratio_sum += ratio;
         under += ratio < 0.5 ? 1 : 0;
         over += ratio > 2.0 ? 1 : 0;
-        out.log2Ratio[i] = y > 0.0 ? float(std::log2(ratio))
-                                   : -std::numeric_limits<float>::infinity();
+        out.log2Ratio[i] =
+            y > 0.0 ? float(std::log2(ratio)) : -std::numeric_limits<float>::infinity();
         noise.push_back(surfaceLuminance(r.standardError[i]) / y_ref);
     }
     out.compared = abs_errors.size();

@@ -27,8 +27,8 @@ std::vector<baker::SurfaceRay> viewRays(const runtime::Camera& camera, uint32_t 
     std::vector<baker::SurfaceRay> rays;
     for (uint32_t y = 0; y < h; ++y) {
         for (uint32_t x = 0; x < w; ++x) {
-            rays.push_back({camera.eye, runtime::pixelDirection(camera, w, h,
-                                                                glm::vec2(x + 0.5f, y + 0.5f))});
+            rays.push_back(
+                {camera.eye, runtime::pixelDirection(camera, w, h, glm::vec2(x + 0.5f, y + 0.5f))});
         }
     }
     return rays;
@@ -95,8 +95,8 @@ Scene floorScene(float albedo) {
     baker::Material m;
     m.baseColor = glm::vec3(albedo);
     scene.materials.push_back(m);
-    scene.positions = {{-50.0f, 0.0f, -50.0f}, {-50.0f, 0.0f, 50.0f}, {50.0f, 0.0f, 50.0f},
-                       {50.0f, 0.0f, -50.0f}};
+    scene.positions = {
+        {-50.0f, 0.0f, -50.0f}, {-50.0f, 0.0f, 50.0f}, {50.0f, 0.0f, 50.0f}, {50.0f, 0.0f, -50.0f}};
     scene.uvs.assign(4, glm::vec2(0.0f));
     scene.triangles = {glm::uvec3(0, 1, 2), glm::uvec3(0, 2, 3)};
     scene.triangleMaterial = {0, 0};
@@ -212,9 +212,9 @@ TEST(SurfaceReference, DeterministicAndItsStandardErrorCoversTheSeedSpread) {
 // face against an 8^3 grid (the README example's former). Hidden, those probes leave the face to
 // the dark probes of the box's opening; relocated out of the block they light it. Measured
 // (1024-sample probes, 2048-sample reference, deringing on): mean ratio 0.74 relocated (half a
-// cell in front of the face), 0.58 hidden (0.21 before deringing). The mean over 768 pixels carries well under 1% of the
-// reference's 8% per-pixel noise, and the probes' noise moves it by about 2% between seeds, so
-// the bounds below leave several times that on each side.
+// cell in front of the face), 0.58 hidden (0.21 before deringing). The mean over 768 pixels carries
+// well under 1% of the reference's 8% per-pixel noise, and the probes' noise moves it by about 2%
+// between seeds, so the bounds below leave several times that on each side.
 TEST(SurfaceAccuracy, AFaceBesideProbesInsideASolidIsLitByRelocatedProbes) {
     const Scene scene = test::generatedScene("cornell");
     const runtime::SurfaceReferenceImage r = referenceImage(scene, shortBlockFace(), 32, 24, 2048);

@@ -65,8 +65,7 @@ constexpr uint32_t kSurfaceSamplesQuick = 256;
 
 // The per-pixel reference of the bench's view, traced once.
 Result<runtime::SurfaceReferenceImage> surfaceReference(const BenchOptions& o,
-                                                        const baker::Scene& scene,
-                                                        uint64_t seed) {
+                                                        const baker::Scene& scene, uint64_t seed) {
     const uint32_t w = o.surfaceView.size[0], h = o.surfaceView.size[1];
     Result<runtime::Camera> camera = chooseCamera(o.surfaceView, scene.bounds, float(w) / float(h));
     if (!camera) {
@@ -75,9 +74,9 @@ Result<runtime::SurfaceReferenceImage> surfaceReference(const BenchOptions& o,
     std::vector<baker::SurfaceRay> rays;
     for (uint32_t y = 0; y < h; ++y) {
         for (uint32_t x = 0; x < w; ++x) {
-            rays.push_back({camera.value().eye,
-                            runtime::pixelDirection(camera.value(), w, h,
-                                                    glm::vec2(x + 0.5f, y + 0.5f))});
+            rays.push_back(
+                {camera.value().eye,
+                 runtime::pixelDirection(camera.value(), w, h, glm::vec2(x + 0.5f, y + 0.5f))});
         }
     }
     baker::SurfaceReferenceSettings settings;
@@ -460,8 +459,7 @@ int runBench(const BenchOptions& o) {
     }
     const auto dark = darkProbes(reference);
 
-    Result<runtime::SurfaceReferenceImage> surface =
-        surfaceReference(o, scene.value(), ref_seed);
+    Result<runtime::SurfaceReferenceImage> surface = surfaceReference(o, scene.value(), ref_seed);
     if (!surface) {
         return fail("surface reference: " + surface.error().message);
     }
@@ -494,8 +492,7 @@ int runBench(const BenchOptions& o) {
             // A method that cannot bake this scene is a result too: one row saying why.
             csv += run.method + "," + csvField(run.parameters) + ",,," + number(seconds) +
                    ",0,0,nan,nan,nan,nan,nan,0,nan,nan,nan,nan,nan," +
-                   csvField("bake failed: " + r.error().message) +
-                   "\n";
+                   csvField("bake failed: " + r.error().message) + "\n";
             std::fprintf(stderr, "bench [%zu/%zu] %s %s: bake failed: %s\n", ri + 1, runs.size(),
                          run.method.c_str(), run.parameters.c_str(),
                          terminalText(r.error().message).c_str());
@@ -537,10 +534,9 @@ int runBench(const BenchOptions& o) {
             csv += prefix + std::to_string(bytes) + "," + number(e.value().relRmse) + "," +
                    number(e.value().maxProbeErr) + "," + number(e.value().maxAbsErr) + "," +
                    number(f.darkRatio) + "," + number(f.negativeFraction) + "," +
-                   std::to_string(r.value().stats.invalidProbes) + "," +
-                   number(px.medianAbsError) + "," + number(px.meanRatio) + "," +
-                   number(px.shareUnderHalf) + "," + number(px.shareOverTwo) + "," +
-                   number(px.shareNegative) + ",ok\n";
+                   std::to_string(r.value().stats.invalidProbes) + "," + number(px.medianAbsError) +
+                   "," + number(px.meanRatio) + "," + number(px.shareUnderHalf) + "," +
+                   number(px.shareOverTwo) + "," + number(px.shareNegative) + ",ok\n";
             if (variant.storage == Storage::Float32 && variant.order == sh::Order::L2) {
                 std::fprintf(stderr,
                              "bench [%zu/%zu] %-4s %-40s %7.2f s  rel RMSE %.4f  worst probe "

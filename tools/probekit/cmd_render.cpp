@@ -46,8 +46,8 @@ struct RenderOptions {
     std::string output;
     CameraOptions framing; // --camera, --camera-from, --fov, --size
     std::string view = "shaded";
-    float exposure = 0.0f;      // stops, added to the automatic exposure
-    bool fixedExposure = false; // --fixed-exposure: 2^exposure alone
+    float exposure = 0.0f;          // stops, added to the automatic exposure
+    bool fixedExposure = false;     // --fixed-exposure: 2^exposure alone
     std::optional<std::string> env; // R,G,B | FILE | none; unset = the bake's environment
     int bench = 0;
     bool directLight = false;

@@ -43,9 +43,8 @@ namespace {
 // Images a command reads: at most 1 GiB (16384 x 16384 x 13 half channels fit).
 constexpr uint64_t kMaxImageBytes = uint64_t(1) << 30;
 
-const std::vector<std::string> kReferenceChannels = {"R",    "G",    "B",   "A",   "err.R",
-                                                     "err.G", "err.B", "N.X", "N.Y", "N.Z",
-                                                     "P.X",  "P.Y",  "P.Z"};
+const std::vector<std::string> kReferenceChannels = {
+    "R", "G", "B", "A", "err.R", "err.G", "err.B", "N.X", "N.Y", "N.Z", "P.X", "P.Y", "P.Z"};
 
 Result<void> encodeAndWrite(const std::string& path, const OIIO::ImageSpec& spec,
                             const char* format, OIIO::TypeDesc type, const void* pixels) {
@@ -204,9 +203,14 @@ std::vector<uint8_t> heatmap(const runtime::SurfaceError& e) {
                           : glm::vec3(1.0f + t, 1.0f + t, 1.0f);
             break;
         }
-        case 2: c = glm::vec3(0.5f); break;
-        case 3: c = glm::vec3(0.2f); break;
-        default: break;
+        case 2:
+            c = glm::vec3(0.5f);
+            break;
+        case 3:
+            c = glm::vec3(0.2f);
+            break;
+        default:
+            break;
         }
         for (int k = 0; k < 3; ++k) {
             rgb[3 * i + size_t(k)] = uint8_t(std::lround(runtime::srgbEncode(c[k]) * 255.0f));
@@ -216,16 +220,11 @@ std::vector<uint8_t> heatmap(const runtime::SurfaceError& e) {
 }
 
 nlohmann::json errorJson(const runtime::SurfaceError& e) {
-    return {{"surface_pixels", e.surfacePixels},
-            {"edge_pixels", e.edgePixels},
-            {"dark_pixels", e.darkPixels},
-            {"compared", e.compared},
-            {"median_abs_error", e.medianAbsError},
-            {"mean_ratio", e.meanRatio},
-            {"share_under_half", e.shareUnderHalf},
-            {"share_over_two", e.shareOverTwo},
-            {"share_negative", e.shareNegative},
-            {"reference_noise", e.referenceNoise},
+    return {{"surface_pixels", e.surfacePixels},    {"edge_pixels", e.edgePixels},
+            {"dark_pixels", e.darkPixels},          {"compared", e.compared},
+            {"median_abs_error", e.medianAbsError}, {"mean_ratio", e.meanRatio},
+            {"share_under_half", e.shareUnderHalf}, {"share_over_two", e.shareOverTwo},
+            {"share_negative", e.shareNegative},    {"reference_noise", e.referenceNoise},
             {"noise_floor", e.noiseFloor}};
 }
 
@@ -383,17 +382,15 @@ int runError(const ErrorOptions& o) {
         }
         const FloatImage& f = image.value();
         if (f.width != r.width || f.height != r.height) {
-            printError("surface-error", o.test + ": " + std::to_string(f.width) + "x" +
-                                            std::to_string(f.height) + ", the reference is " +
-                                            std::to_string(r.width) + "x" +
-                                            std::to_string(r.height) +
-                                            " (render with the same --size and camera)");
+            printError("surface-error",
+                       o.test + ": " + std::to_string(f.width) + "x" + std::to_string(f.height) +
+                           ", the reference is " + std::to_string(r.width) + "x" +
+                           std::to_string(r.height) + " (render with the same --size and camera)");
             return kExitFailure;
         }
         const size_t stride = f.channels.size();
         for (size_t i = 0; i < test.size(); ++i) {
-            test[i] = glm::vec3(f.data[i * stride], f.data[i * stride + 1],
-                                f.data[i * stride + 2]);
+            test[i] = glm::vec3(f.data[i * stride], f.data[i * stride + 1], f.data[i * stride + 2]);
         }
     }
     Result<runtime::SurfaceError> e = runtime::compareSurface(test, r);
@@ -405,8 +402,8 @@ int runError(const ErrorOptions& o) {
         const std::vector<uint8_t> rgb = heatmap(e.value());
         OIIO::ImageSpec spec(int(r.width), int(r.height), 3, OIIO::TypeDesc::UINT8);
         spec.attribute("oiio:ColorSpace", "sRGB");
-        if (Result<void> w = encodeAndWrite(o.heatmap, spec, "png", OIIO::TypeDesc::UINT8,
-                                            rgb.data());
+        if (Result<void> w =
+                encodeAndWrite(o.heatmap, spec, "png", OIIO::TypeDesc::UINT8, rgb.data());
             !w) {
             printError("surface-error", w.error().message);
             return kExitFailure;

@@ -378,10 +378,10 @@ struct BakeStats {
     // Bricked volumes (summed over them):
     uint64_t bricksPerLevel[4] = {0, 0, 0, 0}; // bricks written, by level
     uint64_t nudgedProbes = 0;                 // box-face probes baked just inside the box
-    uint64_t relocatedProbes = 0; // probes inside geometry baked at the nearest free point
-    uint64_t refineCandidates = 0;             // bricks whose finer probes were baked to test them
-    uint64_t budgetDropped = 0;                // finer bricks removed by max_memory_mb
-    uint64_t memoryUntested = 0; // candidate bricks not refined: the working memory was full
+    uint64_t relocatedProbes = 0;  // probes inside geometry baked at the nearest free point
+    uint64_t refineCandidates = 0; // bricks whose finer probes were baked to test them
+    uint64_t budgetDropped = 0;    // finer bricks removed by max_memory_mb
+    uint64_t memoryUntested = 0;   // candidate bricks not refined: the working memory was full
     // Largest disagreement (fraction of RMS irradiance) of a refinement the budget removed:
     // the error the budget cost where it cost most. 0 when the budget did not bind.
     double budgetError = 0.0;

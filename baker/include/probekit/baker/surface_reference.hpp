@@ -28,8 +28,8 @@
 namespace probekit::baker {
 
 struct SurfaceReferenceSettings {
-    uint32_t samples = 1024;   // cosine-distributed directions per hit point (>= 1)
-    uint32_t maxBounces = 64;  // diffuse vertices after the hit point (path_integrator.hpp)
+    uint32_t samples = 1024;  // cosine-distributed directions per hit point (>= 1)
+    uint32_t maxBounces = 64; // diffuse vertices after the hit point (path_integrator.hpp)
     uint64_t seed = 1;
     uint32_t threads = 0; // 0 = every hardware thread
 };
@@ -40,12 +40,12 @@ struct SurfaceRay {
 };
 
 struct SurfaceSample {
-    bool hit = false;            // false: the ray left the scene (the rest is zero)
-    glm::vec3 position{0.0f};    // the hit point, metres
-    glm::vec3 normal{0.0f};      // unit shading normal, facing the ray's origin
-    glm::vec3 irradiance{0.0f};  // E, W/m^2 per channel
+    bool hit = false;              // false: the ray left the scene (the rest is zero)
+    glm::vec3 position{0.0f};      // the hit point, metres
+    glm::vec3 normal{0.0f};        // unit shading normal, facing the ray's origin
+    glm::vec3 irradiance{0.0f};    // E, W/m^2 per channel
     glm::vec3 standardError{0.0f}; // of `irradiance`, W/m^2 per channel
-    uint32_t triangle = 0;       // index into Scene::triangles
+    uint32_t triangle = 0;         // index into Scene::triangles
 };
 
 struct SurfaceReference {
@@ -55,8 +55,9 @@ struct SurfaceReference {
 
 // `progress(done, total)` is called from the calling thread about every 0.5 s (optional).
 // Fails when the scene cannot be built into a tracer, or on settings out of range.
-Result<SurfaceReference> traceSurfaceReference(
-    const Scene& scene, std::span<const SurfaceRay> rays, const SurfaceReferenceSettings& settings,
-    const std::function<void(size_t, size_t)>& progress = {});
+Result<SurfaceReference>
+traceSurfaceReference(const Scene& scene, std::span<const SurfaceRay> rays,
+                      const SurfaceReferenceSettings& settings,
+                      const std::function<void(size_t, size_t)>& progress = {});
 
 } // namespace probekit::baker

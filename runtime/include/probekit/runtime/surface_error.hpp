@@ -47,11 +47,11 @@ constexpr float kDarkShare = 1e-3f;
 struct SurfaceReferenceImage {
     uint32_t width = 0;
     uint32_t height = 0;
-    std::vector<uint8_t> hit;              // 1 where the view sees a surface
-    std::vector<glm::vec3> position;       // metres, world
-    std::vector<glm::vec3> normal;         // unit shading normal
-    std::vector<glm::vec3> irradiance;     // E, W/m^2
-    std::vector<glm::vec3> standardError;  // of irradiance, W/m^2
+    std::vector<uint8_t> hit;             // 1 where the view sees a surface
+    std::vector<glm::vec3> position;      // metres, world
+    std::vector<glm::vec3> normal;        // unit shading normal
+    std::vector<glm::vec3> irradiance;    // E, W/m^2
+    std::vector<glm::vec3> standardError; // of irradiance, W/m^2
 };
 
 struct SurfaceError {
