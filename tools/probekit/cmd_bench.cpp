@@ -71,14 +71,7 @@ Result<runtime::SurfaceReferenceImage> surfaceReference(const BenchOptions& o,
     if (!camera) {
         return camera.error();
     }
-    std::vector<baker::SurfaceRay> rays;
-    for (uint32_t y = 0; y < h; ++y) {
-        for (uint32_t x = 0; x < w; ++x) {
-            rays.push_back(
-                {camera.value().eye,
-                 runtime::pixelDirection(camera.value(), w, h, glm::vec2(x + 0.5f, y + 0.5f))});
-        }
-    }
+    const std::vector<baker::SurfaceRay> rays = viewRays(camera.value(), w, h);
     baker::SurfaceReferenceSettings settings;
     settings.samples =
         o.surfaceSamples.value_or(o.quick ? kSurfaceSamplesQuick : kSurfaceSamplesFull);
@@ -88,16 +81,7 @@ Result<runtime::SurfaceReferenceImage> surfaceReference(const BenchOptions& o,
     if (!traced) {
         return traced.error();
     }
-    runtime::SurfaceReferenceImage image;
-    image.width = w;
-    image.height = h;
-    for (const baker::SurfaceSample& s : traced.value().samples) {
-        image.hit.push_back(s.hit ? 1 : 0);
-        image.position.push_back(s.position);
-        image.normal.push_back(s.normal);
-        image.irradiance.push_back(s.irradiance);
-        image.standardError.push_back(s.standardError);
-    }
+    const runtime::SurfaceReferenceImage image = referenceImage(traced.value(), w, h);
     return image;
 }
 

@@ -262,14 +262,7 @@ int runReference(const ReferenceOptions& o) {
         printError("surface-reference", camera.error().message);
         return kExitFailure;
     }
-    std::vector<baker::SurfaceRay> rays(size_t(width) * height);
-    for (uint32_t y = 0; y < height; ++y) {
-        for (uint32_t x = 0; x < width; ++x) {
-            rays[x + size_t(width) * y] = {camera.value().eye,
-                                           runtime::pixelDirection(camera.value(), width, height,
-                                                                   glm::vec2(x + 0.5f, y + 0.5f))};
-        }
-    }
+    const std::vector<baker::SurfaceRay> rays = viewRays(camera.value(), width, height);
     baker::SurfaceReferenceSettings settings;
     settings.samples = o.samples;
     settings.maxBounces = o.maxBounces;
@@ -290,16 +283,7 @@ int runReference(const ReferenceOptions& o) {
         printError("surface-reference", traced.error().message);
         return kExitFailure;
     }
-    runtime::SurfaceReferenceImage image;
-    image.width = width;
-    image.height = height;
-    for (const baker::SurfaceSample& s : traced.value().samples) {
-        image.hit.push_back(s.hit ? 1 : 0);
-        image.position.push_back(s.position);
-        image.normal.push_back(s.normal);
-        image.irradiance.push_back(s.irradiance);
-        image.standardError.push_back(s.standardError);
-    }
+    const runtime::SurfaceReferenceImage image = referenceImage(traced.value(), width, height);
     if (Result<void> written = writeReference(o.output, image); !written) {
         printError("surface-reference", written.error().message);
         return kExitFailure;
