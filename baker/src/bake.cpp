@@ -289,13 +289,142 @@ glm::uvec3 automaticResolution(const VolumeConfig& v, const grid::Aabb& box, flo
 
 } // namespace
 
+namespace {
+
+// A tracer built on first use: only volumes with automatic padding need one, and it is the
+// planning's first big allocation, so the bake's memory model (without volumes) must allow it.
+class LazyTracer {
+public:
+    LazyTracer(const Scene& scene, const BakeConfig& config) : m_scene(scene), m_config(config) {}
+
+    Result<const RayTracer*> get() {
+        if (!m_tracer) {
+            if (Result<void> fits = checkBakeMemory(
+                    predictBakeMemory({m_scene, m_config, {}, 0, 1, processBytes(m_scene)}),
+                    m_config);
+                !fits) {
+                return fits.error();
+            }
+            Result<std::unique_ptr<RayTracer>> made = RayTracer::create(m_scene);
+            if (!made) {
+                return made.error();
+            }
+            m_tracer = std::move(made).value();
+        }
+        return m_tracer.get();
+    }
+
+private:
+    const Scene& m_scene;
+    const BakeConfig& m_config;
+    std::unique_ptr<RayTracer> m_tracer;
+};
+
+// The padding of volume `v` in metres: bounds.padding when set; otherwise 0, or for automatic
+// bounds that hug a closed object kAutoPaddingGrowth x the box's longest side (with a note).
+Result<float> volumePadding(const Scene& scene, const BakeConfig& config, const VolumeConfig& v,
+                            const PlacedBox& placed, const std::string& label, LazyTracer& tracer,
+                            std::vector<std::string>& notes) {
+    if (v.bounds.padding || v.bounds.mode == BoundsMode::Custom || !scene.hasGeometry()) {
+        return v.bounds.padding.value_or(0.0f);
+    }
+    Result<const RayTracer*> traced = tracer.get();
+    if (!traced) {
+        return traced.error();
+    }
+    const float share = insideShare(*traced.value(), placed, config.backfaceThreshold);
+    if (share <= kAutoPaddingInsideShare) {
+        return 0.0f;
+    }
+    const glm::vec3 size = placed.box.size();
+    const float padding = kAutoPaddingGrowth * std::max({size.x, size.y, size.z});
+    char text[320];
+    std::snprintf(text, sizeof text,
+                  "%s: %.0f%% of the test points in the scene's box lie inside "
+                  "geometry (a closed object): padding %.4g m on every side so that "
+                  "most probes lie outside it (set bounds.padding or --padding to "
+                  "choose)",
+                  label.c_str(), 100.0 * share, double(padding));
+    notes.emplace_back(text);
+    return padding;
+}
+
+// Probes per metre of volume `v` over `box`: its density, or the automatic rule.
+float volumeDensity(const VolumeConfig& v, const grid::Aabb& box) {
+    const glm::vec3 extent = box.size();
+    const float longest = std::max({extent.x, extent.y, extent.z});
+    return v.density ? *v.density
+                     : std::max(kDefaultDensity, longest > 0.0f ? kMinAutoProbes / longest : 0.0f);
+}
+
+// The volume's grid over its padded `box` and its description.
+Result<VolumeDesc> placeVolume(const VolumeConfig& v, grid::Aabb box, const grid::RigidFrame& frame,
+                               const std::string& label, std::vector<std::string>& notes) {
+    const float density = volumeDensity(v, box);
+    // A flat scene (a single floor quad) has zero thickness; give it one probe spacing.
+    if (v.bounds.mode != BoundsMode::Custom) {
+        for (int a = 0; a < 3; ++a) {
+            if (box.max[a] - box.min[a] <= 0.0f) {
+                box.min[a] -= 0.5f / density;
+                box.max[a] += 0.5f / density;
+            }
+        }
+    }
+    if (Result<void> inside = checkVolumeCoordinates(box, label); !inside) {
+        return inside.error();
+    }
+    const bool bricked = v.layout == VolumeLayout::Bricked;
+    const glm::uvec3 res =
+        v.resolution ? *v.resolution : automaticResolution(v, box, density, label, notes);
+    Result<grid::GridLayout> layout =
+        grid::GridLayout::make(box, res, bricked ? grid::PositionMode::Center : v.position, frame);
+    if (!layout) {
+        return makeError(layout.error().code, label + ": " + layout.error().message);
+    }
+    if (Result<void> inside = checkVolumeCoordinates(layout.value().worldBounds(), label);
+        !inside) {
+        return inside.error();
+    }
+    VolumeDesc desc;
+    desc.name = v.name;
+    desc.grid = layout.value();
+    desc.shOrder = v.shOrder;
+    desc.storage = v.storage;
+    desc.blendPriority = v.blendPriority;
+    desc.fadeDistance = v.fadeDistance;
+    if (bricked) {
+        desc.layout = VolumeLayout::Bricked;
+        desc.bricks.maxLevel = v.maxLevel;
+    }
+    return desc;
+}
+
+// For a scene far from the origin for its finest probe spacing, what float32 costs there.
+void addPrecisionNote(const Scene& scene, VolumePlan& plan) {
+    if (plan.volumes.empty()) {
+        return;
+    }
+    grid::Aabb all = plan.volumes[0].grid.worldBounds();
+    float finest = INFINITY;
+    for (const VolumeDesc& d : plan.volumes) {
+        all = unionOf(all, d.grid.worldBounds());
+        const glm::vec3 s = probeSpacing(d);
+        finest = std::min({finest, s.x, s.y, s.z});
+    }
+    if (std::string note = precisionNote(scene, all, finest); !note.empty()) {
+        plan.notes.push_back((scene.source.empty() ? "scene" : scene.source) + ": " + note);
+    }
+}
+
+} // namespace
+
 Result<VolumePlan> planVolumes(const Scene& scene, const BakeConfig& config) {
     if (Result<void> inside = checkSceneCoordinates(scene); !inside) {
         return inside.error();
     }
     const std::vector<VolumeConfig> configs = volumeConfigs(config);
     VolumePlan plan;
-    std::unique_ptr<RayTracer> tracer; // built only if a volume's padding is automatic
+    LazyTracer tracer(scene, config);
     for (size_t index = 0; index < configs.size(); ++index) {
         const VolumeConfig& v = configs[index];
         const std::string label = volumeLabel(index, v);
@@ -303,94 +432,22 @@ Result<VolumePlan> planVolumes(const Scene& scene, const BakeConfig& config) {
         if (!placed) {
             return placed.error();
         }
+        const Result<float> padding =
+            volumePadding(scene, config, v, placed.value(), label, tracer, plan.notes);
+        if (!padding) {
+            return padding.error();
+        }
         grid::Aabb box = placed.value().box;
-        float padding = v.bounds.padding.value_or(0.0f);
-        if (!v.bounds.padding && v.bounds.mode != BoundsMode::Custom && scene.hasGeometry()) {
-            if (!tracer) {
-                // The tracer is the first big allocation: the bake's memory model (without
-                // volumes) must allow it.
-                if (Result<void> fits = checkBakeMemory(
-                        predictBakeMemory({scene, config, {}, 0, 1, processBytes(scene)}), config);
-                    !fits) {
-                    return fits.error();
-                }
-                Result<std::unique_ptr<RayTracer>> made = RayTracer::create(scene);
-                if (!made) {
-                    return made.error();
-                }
-                tracer = std::move(made).value();
-            }
-            const float share = insideShare(*tracer, placed.value(), config.backfaceThreshold);
-            if (share > kAutoPaddingInsideShare) {
-                const glm::vec3 size = box.size();
-                padding = kAutoPaddingGrowth * std::max({size.x, size.y, size.z});
-                char text[320];
-                std::snprintf(text, sizeof text,
-                              "%s: %.0f%% of the test points in the scene's box lie inside "
-                              "geometry (a closed object): padding %.4g m on every side so that "
-                              "most probes lie outside it (set bounds.padding or --padding to "
-                              "choose)",
-                              label.c_str(), 100.0 * share, double(padding));
-                plan.notes.emplace_back(text);
-            }
+        box.min -= glm::vec3(padding.value());
+        box.max += glm::vec3(padding.value());
+        Result<VolumeDesc> desc = placeVolume(v, box, placed.value().frame, label, plan.notes);
+        if (!desc) {
+            return desc.error();
         }
-        box.min -= glm::vec3(padding);
-        box.max += glm::vec3(padding);
-        const glm::vec3 extent = box.size();
-        const float longest = std::max({extent.x, extent.y, extent.z});
-        const float density =
-            v.density ? *v.density
-                      : std::max(kDefaultDensity, longest > 0.0f ? kMinAutoProbes / longest : 0.0f);
-        // A flat scene (a single floor quad) has zero thickness; give it one probe spacing.
-        if (v.bounds.mode != BoundsMode::Custom) {
-            for (int a = 0; a < 3; ++a) {
-                if (box.max[a] - box.min[a] <= 0.0f) {
-                    box.min[a] -= 0.5f / density;
-                    box.max[a] += 0.5f / density;
-                }
-            }
-        }
-        if (Result<void> inside = checkVolumeCoordinates(box, label); !inside) {
-            return inside.error();
-        }
-        const bool bricked = v.layout == VolumeLayout::Bricked;
-        const glm::uvec3 res =
-            v.resolution ? *v.resolution : automaticResolution(v, box, density, label, plan.notes);
-        Result<grid::GridLayout> layout = grid::GridLayout::make(
-            box, res, bricked ? grid::PositionMode::Center : v.position, placed.value().frame);
-        if (!layout) {
-            return makeError(layout.error().code, label + ": " + layout.error().message);
-        }
-        if (Result<void> inside = checkVolumeCoordinates(layout.value().worldBounds(), label);
-            !inside) {
-            return inside.error();
-        }
-        VolumeDesc desc;
-        desc.name = v.name;
-        desc.grid = layout.value();
-        desc.shOrder = v.shOrder;
-        desc.storage = v.storage;
-        desc.blendPriority = v.blendPriority;
-        desc.fadeDistance = v.fadeDistance;
-        if (bricked) {
-            desc.layout = VolumeLayout::Bricked;
-            desc.bricks.maxLevel = v.maxLevel;
-        }
-        plan.volumes.push_back(std::move(desc));
-        plan.padding.push_back(padding);
+        plan.volumes.push_back(std::move(desc).value());
+        plan.padding.push_back(padding.value());
     }
-    if (!plan.volumes.empty()) {
-        grid::Aabb all = plan.volumes[0].grid.worldBounds();
-        float finest = INFINITY;
-        for (const VolumeDesc& d : plan.volumes) {
-            all = unionOf(all, d.grid.worldBounds());
-            const glm::vec3 s = probeSpacing(d);
-            finest = std::min({finest, s.x, s.y, s.z});
-        }
-        if (std::string note = precisionNote(scene, all, finest); !note.empty()) {
-            plan.notes.push_back((scene.source.empty() ? "scene" : scene.source) + ": " + note);
-        }
-    }
+    addPrecisionNote(scene, plan);
     const uint64_t bytes = estimateBakeMemory(plan.volumes);
     if (bytes > config.maxMemoryBytes) {
         return makeError(
@@ -506,14 +563,10 @@ void prepareVpl(BakeRun& run, const std::vector<VolumeDesc>& descs, MethodState&
                 BakeStats& stats) {
     const BakeConfig& config = run.config;
     const VplConfig& vpl = method.vplConfig.emplace(resolveVplConfig(run.scene, descs, config));
-    VplSet set = traceVpls(run.scene, run.tracer,
-                           VplPathSettings{*vpl.count, vpl.bounces, vpl.sampling}, config.seed);
+    VplSet set = traceVpls(run.scene, run.tracer, *vpl.count, vpl, config.seed);
     run.rays.fetch_add(set.rays);
     stats.vplLightPaths = set.lightPaths;
-    method.vplGatherer.emplace(
-        std::move(set.vpls), run.tracer,
-        VplGatherSettings{vpl.clamp, *vpl.clampDistance, *vpl.nearField, vpl.shadows, vpl.cutError},
-        config.seed);
+    method.vplGatherer.emplace(std::move(set.vpls), run.tracer, vpl, config.seed);
     stats.vpls = method.vplGatherer->vpls().size();
 }
 
@@ -541,13 +594,8 @@ MethodState prepareMethod(BakeRun& run, const std::vector<VolumeDesc>& descs, Ba
 
 // The path integrator's settings for every probe: the whole light for method path, the
 // direct light (and validity) for vpl, validity and optionally traced direct light for lpv.
-PathSettings pathSettings(const BakeConfig& config, const MethodState& method) {
-    PathSettings settings;
-    settings.samples = config.path.samples;
-    settings.maxBounces = config.path.maxBounces;
-    settings.noiseTarget = config.path.noiseTarget;
-    settings.maxSamples = config.path.maxSamples;
-    settings.noiseFloor = config.path.noiseFloor;
+PathConfig methodPathConfig(const BakeConfig& config, const MethodState& method) {
+    PathConfig settings = config.path;
     if (method.lpvLights) {
         settings.samples =
             config.lpv.direct == LpvDirect::Traced ? config.lpv.directSamples : kLpvValiditySamples;
@@ -570,7 +618,7 @@ public:
                             ? std::optional<LpvCascades>(propagateLpv(
                                   run.scene, *method.lpvLights, m_config.lpv, desc, run.threads))
                             : std::nullopt),
-          m_path(run.scene, run.tracer, pathSettings(m_config, method), desc.shOrder) {
+          m_path(run.scene, run.tracer, methodPathConfig(m_config, method), desc.shOrder) {
         if (method.vplGatherer) {
             m_vpl.emplace(run.scene, run.tracer, *method.vplGatherer, *method.vplConfig,
                           m_config.path, desc.shOrder);
@@ -578,7 +626,7 @@ public:
     }
 
     // Adaptive sampling's target for the path-traced part (0: fixed sampling).
-    float noiseTarget() const { return m_path.settings().noiseTarget; }
+    float noiseTarget() const { return m_path.config().noiseTarget; }
 
     // The probe at `p`, seeded by (seed, volume, id); adds the VPL cut's size to `cut`.
     ProbeSample bakeProbe(glm::vec3 p, uint64_t id, uint64_t& cut) const {
@@ -587,7 +635,7 @@ public:
             const VplProbeSample v = m_vpl->bakeProbe(p, m_config.seed, m_volume, id);
             s = v.probe;
             cut += v.cutSize;
-        } else if (m_lpvCascades && m_path.settings().noiseTarget > 0.0f) {
+        } else if (m_lpvCascades && m_path.config().noiseTarget > 0.0f) {
             // The traced direct light's noise counts against the whole probe, cascades included.
             const sh::ShRgb cascades = lpvProbe(*m_lpvCascades, m_config.lpv, p, sh::ShRgb{});
             s = m_path.bakeProbe(p, m_config.seed, m_volume, id, &cascades);
@@ -664,20 +712,10 @@ void bakeBatch(BakeRun& run, const VolumeIntegrator& integrator,
 }
 
 BrickedSettings brickedSettings(const BakeRun& run, const VolumeConfig& vc, uint32_t volume_index) {
-    BrickedSettings bs;
-    bs.maxLevel = vc.maxLevel;
-    bs.refineError = vc.refineError;
-    bs.budgetBytes = run.config.maxMemoryBytes;
-    // max_memory_mb less what the rest of the bake holds meanwhile (memory_model.hpp).
-    bs.workingBytes = run.memory.brickedWorkingBytes[volume_index];
-    bs.dilate = run.config.dilate;
-    bs.tracer = &run.tracer;
-    bs.nudge = run.config.nudge;
-    bs.backfaceThreshold = run.config.backfaceThreshold;
-    bs.visibility = run.config.visibility;
-    bs.dering = run.config.dering;
-    bs.threads = run.threads;
-    return bs;
+    // The working memory: max_memory_mb less what the rest of the bake holds meanwhile
+    // (memory_model.hpp).
+    return BrickedSettings{run.config, vc, run.memory.brickedWorkingBytes[volume_index],
+                           &run.tracer, run.threads};
 }
 
 // Adds a bricked volume's statistics and warnings to the bake's.

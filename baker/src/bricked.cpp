@@ -534,9 +534,10 @@ namespace {
 struct BrickedBake {
     BrickedBake(const Scene& s, const VolumeDesc& d, sh::Order o, const BrickedSettings& bs,
                 const ProbeBatchFn& bake_batch)
-        : scene(s), desc(d), order(o), settings(bs), bake(bake_batch), maxLevel(bs.maxLevel),
+        : scene(s), desc(d), order(o), settings(bs), bake(bake_batch), maxLevel(bs.volume.maxLevel),
           top(d.grid.resolution()),
-          lattice(d, maxLevel, bake_batch, bs.nudge ? bs.tracer : nullptr, bs.backfaceThreshold),
+          lattice(d, maxLevel, bake_batch, bs.config.nudge ? bs.tracer : nullptr,
+                  bs.config.backfaceThreshold),
           reach(s, d, maxLevel) {}
 
     const Scene& scene;
@@ -557,7 +558,7 @@ struct BrickedBake {
 // Invalid probes take dilated values as soon as they are baked: the refinement test then
 // sees what the runtime will interpolate.
 void dilateBaked(BrickedBake& b) {
-    if (!b.settings.dilate) {
+    if (!b.settings.config.dilate) {
         return;
     }
     std::vector<uint64_t> invalid;
@@ -768,7 +769,7 @@ void refine(BrickedBake& b) {
         // (1/8 per level) times the squared disagreement in its octant from the volume's
         // squared error. It is kept where that exceeds a fixed price per brick, which means
         // where its octant's disagreement exceeds refine_error x sqrt(8)^level.
-        const float threshold = b.settings.refineError * std::pow(8.0f, 0.5f * float(level));
+        const float threshold = b.settings.volume.refineError * std::pow(8.0f, 0.5f * float(level));
         const Candidates candidates = chooseCandidates(b, direct, frontier, threshold);
         b.out.refineCandidates += candidates.nodes.size();
         frontier = keepFinerBricks(b, candidates, level, threshold);
@@ -792,7 +793,7 @@ struct StoredCounts {
 uint64_t storedBytes(const BrickedBake& b, const StoredCounts& counts) {
     const uint64_t stored = counts.at[0] + counts.at[1] + counts.at[2] + counts.at[3];
     return brickedGpuBytes(b.top, counts.deepest(b.maxLevel), stored, b.order, b.desc.storage,
-                           b.settings.visibility);
+                           b.settings.config.visibility);
 }
 
 // Drops the finer bricks whose removal costs the least error (volume times squared gain)
@@ -816,7 +817,7 @@ void dropCheapest(BrickedBake& b, StoredCounts& counts) {
             heap.emplace(cost(int(i)), int(i));
         }
     }
-    while (storedBytes(b, counts) > b.settings.budgetBytes && !heap.empty()) {
+    while (storedBytes(b, counts) > b.settings.config.maxMemoryBytes && !heap.empty()) {
         const int i = heap.top().second;
         heap.pop();
         Node& n = nodes[size_t(i)];
@@ -837,15 +838,15 @@ Result<uint32_t> applyBudget(BrickedBake& b) {
     for (const Node& n : b.nodes) {
         ++counts.at[n.brick.level];
     }
-    if (storedBytes(b, counts) > b.settings.budgetBytes) {
+    if (storedBytes(b, counts) > b.settings.config.maxMemoryBytes) {
         dropCheapest(b, counts);
         const uint64_t bytes = storedBytes(b, counts);
-        if (bytes > b.settings.budgetBytes) {
+        if (bytes > b.settings.config.maxMemoryBytes) {
             return makeError(ErrorCode::OutOfRange,
                              "volume '" + b.desc.name + "': level 0 alone needs " +
                                  std::to_string((bytes + (1 << 20) - 1) >> 20) +
                                  " MiB, more than max_memory_mb = " +
-                                 std::to_string(b.settings.budgetBytes >> 20) +
+                                 std::to_string(b.settings.config.maxMemoryBytes >> 20) +
                                  " (fewer level-0 bricks: lower the density or resolution)");
         }
     }
@@ -952,7 +953,7 @@ Result<void> stitch(BrickedBake& b) {
     if (!indirection) {
         return indirection.error();
     }
-    if (b.settings.visibility && b.settings.tracer != nullptr) {
+    if (b.settings.config.visibility && b.settings.tracer != nullptr) {
         b.out.visibility = traceVolumeVisibility(*b.settings.tracer, b.out.desc, b.out.validity,
                                                  b.settings.threads);
     }
@@ -987,11 +988,11 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
     b.out.predictedError = predictedError(b, stored);
     const std::vector<uint64_t> used_keys = layOutBricks(b, stored, used_level.value());
     const std::vector<uint8_t> original_valid = b.lattice.allValid();
-    if (settings.dilate) {
+    if (settings.config.dilate) {
         dilateUsed(b, used_keys);
     }
     copyProbes(b, used_keys, original_valid);
-    if (settings.dering) {
+    if (settings.config.dering) {
         b.out.deringChanges.assign(b.out.probes.size(), kNotDeringed);
         deringProbes(b.out.probes, order, desc.storage, settings.threads, b.out.deringChanges);
     }

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "probekit/baker/config.hpp"
 #include "probekit/baker/scene.hpp"
 #include "probekit/formats/result.hpp"
 #include "probekit/formats/volume.hpp"
@@ -31,29 +32,22 @@ constexpr uint64_t kBakedProbeBytes = 1024;
 // bricked volumes' GPU bytes (refinement is then limited by kMinWorkingBytes).
 constexpr uint64_t kMinWorkingBytes = 256ull << 20;
 
+// A bricked bake reads its settings where they live: the bake's config (dilate, nudge,
+// backfaceThreshold, visibility, dering; maxMemoryBytes is the budget for the GPU bytes, texels
+// + indirection) and the volume's (maxLevel, refineError, a fraction of the volume's RMS
+// irradiance). The rest is what the run gives it.
 struct BrickedSettings {
-    uint32_t maxLevel = 2;
-    float refineError = 0.05f; // fraction of the volume's RMS irradiance
-    uint64_t budgetBytes = ~uint64_t(0);
+    const BakeConfig& config;
+    const VolumeConfig& volume;
     // The bake's working memory for this volume (what BakeConfig::maxMemoryBytes leaves beside
     // the rest of the bake, memory_model.hpp): refinement tests no more candidate bricks than
     // the lattice can hold at kBakedProbeBytes per probe, the candidates with the largest
     // predicted disagreement first.
     uint64_t workingBytes = ~uint64_t(0);
-    bool dilate = true;
-    // Traces the direct-light pre-pass (shadow rays to punctual lights) and the search for
-    // nudged positions; null = neither.
+    // Traces the direct-light pre-pass (shadow rays to punctual lights), the search for nudged
+    // positions (config.nudge, bricked.cpp's Lattice::nudge) and the visibility (config.
+    // visibility, visibility.hpp); null = none of them.
     const RayTracer* tracer = nullptr;
-    // Invalid probes on the box faces (on a wall or floor the box is placed against) are baked
-    // again just inside the box instead of being dilated (see bricked.cpp, Lattice::nudge).
-    bool nudge = true;
-    float backfaceThreshold = 0.25f; // BakeConfig::backfaceThreshold
-    // BakeConfig::visibility: trace the probes' visibility (visibility.hpp; needs `tracer`),
-    // stitch with it and count its GPU bytes in the budget.
-    bool visibility = false;
-    // BakeConfig::dering: dering the probes before their borders are stitched (dering.hpp);
-    // the caller derings the stitched result again.
-    bool dering = false;
     uint32_t threads = 1; // for the visibility tracing and deringing
 };
 
@@ -61,9 +55,9 @@ struct BrickedOutcome {
     VolumeDesc desc; // with desc.bricks filled in
     std::vector<sh::ShRgb> probes;
     std::vector<uint8_t> validity;
-    std::vector<uint8_t> visibility; // empty unless BrickedSettings::visibility
+    std::vector<uint8_t> visibility; // empty unless BakeConfig::visibility
     // Per probe, what deringing before stitching did (dering.hpp: kNotDeringed, or the relative
-    // change); empty unless BrickedSettings::dering.
+    // change); empty unless BakeConfig::dering.
     std::vector<float> deringChanges;
     uint64_t bricksPerLevel[4] = {0, 0, 0, 0};
     uint64_t refineCandidates = 0;

@@ -9,11 +9,13 @@
 #include <limits>
 #include <optional>
 #include <set>
+#include <span>
 #include <type_traits>
 
 #include <nlohmann/json.hpp>
 
 #include "probekit/baker/bake.hpp"
+#include "probekit/baker/config.hpp"
 #include "probekit/baker/settings.hpp"
 #include "probekit/formats/file_io.hpp"
 
@@ -660,9 +662,19 @@ const std::vector<Field<VolumeConfig>>& volumeFields() {
     return fields;
 }
 
+// The keys each object of the config holds besides its table's scalar fields: sections and
+// values with structure of their own, parsed by hand. With the tables, the config's whole
+// vocabulary (configVocabulary, from which tools/fuzz.sh writes the fuzz dictionary).
+constexpr std::array<const char*, 6> kTopSections = {"path",        "vpl",     "lpv",
+                                                     "environment", "volumes", "validity"};
+constexpr std::array<const char*, 3> kVolumeKeys = {"name", "bounds", "resolution"};
+constexpr std::array<const char*, 3> kEnvironmentKeys = {"type", "radiance", "file"};
+constexpr std::array<const char*, 7> kBoundsKeys = {"mode", "center", "size", "min",
+                                                    "max",  "nodes",  "node"};
+
 template <class T>
 std::vector<std::string> keysOf(const std::vector<Field<T>>& fields,
-                                std::initializer_list<const char*> others) {
+                                std::span<const char* const> others) {
     std::vector<std::string> keys;
     for (const Field<T>& f : fields) {
         keys.emplace_back(f.key);
@@ -676,7 +688,7 @@ std::vector<std::string> keysOf(const std::vector<Field<T>>& fields,
 template <class T>
 void readFields(const Reader& r, const Json& j, const std::string& path,
                 const std::vector<Field<T>>& fields, T& out,
-                std::initializer_list<const char*> others = {}) {
+                std::span<const char* const> others = {}) {
     r.checkKeys(j, path, keysOf(fields, others));
     for (const Field<T>& f : fields) {
         const std::string key(f.key);
@@ -747,8 +759,7 @@ std::string nodeName(const Reader& r, const Json& n, const std::string& path) {
 
 BoundsConfig parseBounds(const Reader& r, const Json& j, const std::string& path) {
     BoundsConfig b;
-    readFields(r, j, path, boundsFields(), b,
-               {"mode", "center", "size", "min", "max", "nodes", "node"});
+    readFields(r, j, path, boundsFields(), b, kBoundsKeys);
     if (!j.contains("mode")) {
         r.fail(path + ".mode", "missing (custom, auto-world or auto-local)");
     }
@@ -815,7 +826,7 @@ Json describeBounds(const BoundsConfig& b) {
 
 VolumeConfig parseVolume(const Reader& r, const Json& j, const std::string& path) {
     VolumeConfig v;
-    readFields(r, j, path, volumeFields(), v, {"name", "bounds", "resolution"});
+    readFields(r, j, path, volumeFields(), v, kVolumeKeys);
     if (j.contains("name")) {
         v.name = r.string(j["name"], path + ".name");
     }
@@ -865,7 +876,7 @@ void checkEnvironment(const Reader& r, const EnvironmentConfig& e, const std::st
 EnvironmentConfig parseEnvironment(const Reader& r, const Json& j, const std::string& path,
                                    const std::filesystem::path& base_dir) {
     EnvironmentConfig e;
-    readFields(r, j, path, environmentFields(), e, {"type", "radiance", "file"});
+    readFields(r, j, path, environmentFields(), e, kEnvironmentKeys);
     if (!j.contains("type")) {
         r.fail(path + ".type", "missing (black, constant or latlong)");
     }
@@ -901,8 +912,7 @@ Json describeEnvironment(const EnvironmentConfig& e) {
 
 BakeConfig parseTop(const Reader& r, const Json& j, const std::filesystem::path& base_dir) {
     BakeConfig c;
-    readFields(r, j, "", topFields(), c,
-               {"path", "vpl", "lpv", "environment", "volumes", "validity"});
+    readFields(r, j, "", topFields(), c, kTopSections);
     if (j.contains("path")) {
         readFields(r, j["path"], "path", pathFields(), c.path);
     }
@@ -1058,6 +1068,32 @@ Result<void> setBakeSetting(BakeConfig& config, std::string_view path, std::stri
             Reader(source).check(s.value()->admits, fromText(text), std::string(path));
         s.value()->set(config, value);
     });
+}
+
+std::vector<std::string> configVocabulary() {
+    std::set<std::string> words;
+    for (const Setting& s : settings()) {
+        const std::string& path = s.info.path;
+        const size_t dot = path.rfind('.');
+        words.insert(dot == std::string::npos ? path : path.substr(dot + 1));
+        words.insert(s.admits.names.begin(), s.admits.names.end());
+        if (s.admits.autoValue) {
+            words.insert("auto");
+        }
+    }
+    for (const auto& keys :
+         {std::span<const char* const>(kTopSections), std::span<const char* const>(kVolumeKeys),
+          std::span<const char* const>(kEnvironmentKeys),
+          std::span<const char* const>(kBoundsKeys)}) {
+        words.insert(keys.begin(), keys.end());
+    }
+    for (const std::string& name : enumNames<BoundsMode>()) {
+        words.insert(name);
+    }
+    for (const std::string& name : enumNames<EnvironmentConfig::Type>()) {
+        words.insert(name);
+    }
+    return {words.begin(), words.end()};
 }
 
 Result<void> validateBakeConfig(const BakeConfig& c) {

@@ -120,9 +120,8 @@ LpvLights prepareLpvLights(const Scene& scene, const RayTracer& tracer, const Lp
                            const std::vector<VolumeDesc>& volumes, uint64_t seed,
                            uint32_t threads) {
     LpvLights out;
-    const VplSet set = traceVpls(
-        scene, tracer,
-        VplPathSettings{config.vplCount, VplConfig{}.bounces, VplSampling::Stratified}, seed);
+    // The VPL method's default light paths (bounces, stratified sampling), lpv.vpl_count of them.
+    const VplSet set = traceVpls(scene, tracer, config.vplCount, VplConfig{}, seed);
     out.vpls = set.vpls.size();
     out.rays = set.rays;
     std::vector<LpvSurfaceLight> surface;

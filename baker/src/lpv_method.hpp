@@ -23,7 +23,7 @@
 #include <vector>
 
 #include "lpv.hpp"
-#include "probekit/baker/bake.hpp"
+#include "probekit/baker/config.hpp"
 #include "probekit/baker/scene.hpp"
 #include "ray_tracer.hpp"
 

@@ -23,7 +23,7 @@
 #include <string>
 #include <vector>
 
-#include "probekit/baker/bake.hpp"
+#include "probekit/baker/config.hpp"
 #include "probekit/baker/scene.hpp"
 #include "probekit/formats/result.hpp"
 

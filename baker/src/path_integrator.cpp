@@ -30,15 +30,15 @@ constexpr uint32_t kSamplesPerBlock = 64;
 
 } // namespace
 
-PathIntegrator::PathIntegrator(const Scene& scene, const RayTracer& tracer, PathSettings settings,
-                               sh::Order order)
-    : m_scene(scene), m_tracer(tracer), m_settings(settings), m_order(order), m_lights(scene),
-      m_environmentBlack(scene.environment.isBlack()) {
-    assert(settings.samples >= 1);
+PathIntegrator::PathIntegrator(const Scene& scene, const RayTracer& tracer, PathConfig config,
+                               sh::Order order, float near_distance)
+    : m_scene(scene), m_tracer(tracer), m_config(config), m_nearDistance(near_distance),
+      m_order(order), m_lights(scene), m_environmentBlack(scene.environment.isBlack()) {
+    assert(config.samples >= 1);
     assert(tracer.triangleCount() == scene.triangles.size());
 }
 
-BatchPlan batchPlan(const PathSettings& settings) {
+BatchPlan batchPlan(const PathConfig& settings) {
     const uint32_t size = std::clamp(std::bit_floor(std::max(1u, settings.samples / kMinBatches)),
                                      kMinBatchSize, kMaxBatchSize);
     const uint32_t min_batches =
@@ -70,7 +70,7 @@ ProbeSample PathIntegrator::bakeProbe(glm::vec3 position, uint64_t seed, uint32_
         }
     }
 
-    ProbeSample result = m_settings.noiseTarget > 0.0f
+    ProbeSample result = m_config.noiseTarget > 0.0f
                              ? bakeAdaptive(position, probe_key, deltas, known)
                              : bakeFixed(position, probe_key);
     result.sh += deltas;
@@ -88,7 +88,7 @@ void PathIntegrator::traceSample(glm::vec3 position, glm::vec3 dir, uint64_t rng
 
 ProbeSample PathIntegrator::bakeFixed(glm::vec3 position, uint64_t probe_key) const {
     const auto sobol_seed = uint32_t(probe_key ^ (probe_key >> 32));
-    const uint32_t n = m_settings.samples;
+    const uint32_t n = m_config.samples;
 
     ProbeSample result{};
     sh::ShRgb block{};
@@ -115,7 +115,7 @@ ProbeSample PathIntegrator::bakeFixed(glm::vec3 position, uint64_t probe_key) co
 ProbeSample PathIntegrator::bakeAdaptive(glm::vec3 position, uint64_t probe_key,
                                          const sh::ShRgb& fixed_part,
                                          const sh::ShRgb* known) const {
-    const BatchPlan plan = batchPlan(m_settings);
+    const BatchPlan plan = batchPlan(m_config);
     constexpr size_t kComponents = std::size(kAxisNormals) * 3;
     const auto axisIrradiance = [this](const sh::ShRgb& sh) {
         std::array<double, kComponents> x{};
@@ -174,16 +174,16 @@ ProbeSample PathIntegrator::bakeAdaptive(glm::vec3 position, uint64_t probe_key,
             const double e = mean[c] + outside_axis[c];
             magnitude += e * e;
         }
-        magnitude = std::max(magnitude, double(kComponents) * double(m_settings.noiseFloor) *
-                                            double(m_settings.noiseFloor));
+        magnitude = std::max(magnitude, double(kComponents) * double(m_config.noiseFloor) *
+                                            double(m_config.noiseFloor));
         noise = magnitude > 0.0  ? std::sqrt(variance / magnitude)
                 : variance > 0.0 ? std::numeric_limits<double>::infinity()
                                  : 0.0;
-        if (noise <= double(m_settings.noiseTarget) || batches >= plan.maxBatches) {
+        if (noise <= double(m_config.noiseTarget) || batches >= plan.maxBatches) {
             break;
         }
         // Noise falls as 1 / sqrt(batches): trace to the predicted count, at most doubling.
-        const double ratio = noise / double(m_settings.noiseTarget);
+        const double ratio = noise / double(m_config.noiseTarget);
         const double wanted = std::ceil(double(batches) * std::min(ratio * ratio, 2.0));
         next_check = std::min(plan.maxBatches, std::max(batches + 1, uint32_t(wanted)));
     }
@@ -214,7 +214,7 @@ glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, floa
     }
     stats.primaryBackFace = hit->backFace;
     const float hit_distance = hit->t; // dir is unit: metres
-    stats.primaryNear = hit_distance < m_settings.nearDistance;
+    stats.primaryNear = hit_distance < m_nearDistance;
 
     glm::vec3 radiance(0.0f);
     glm::vec3 throughput(1.0f);
@@ -232,7 +232,7 @@ glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, floa
                 continuation_pdf, emitterPdfSolidAngle(*hit, position - previous_position));
             radiance += throughput * emitted * mis_weight;
         }
-        if (vertex == m_settings.maxBounces || !(hit_distance < m_settings.nearDistance)) {
+        if (vertex == m_config.maxBounces || !(hit_distance < m_nearDistance)) {
             break;
         }
         ++vertex;
@@ -251,7 +251,7 @@ glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, floa
         const glm::vec3 next_dir = cosineDirection(normal, rng.uniform2());
         continuation_pdf = glm::dot(normal, next_dir) * kInvPi;
         throughput *= albedo;
-        if (vertex >= m_settings.rouletteStartBounce) {
+        if (vertex >= kRouletteStartBounce) {
             const float survival = std::min(1.0f, maxComponent(throughput));
             if (rng.uniform() >= survival) {
                 break;

@@ -19,18 +19,18 @@
 //    maps (LightSampler). (b) and (c) are combined with the cosine-sampled continuation by
 //    multiple importance sampling with the power heuristic (Veach 1997, ch. 9). A constant
 //    environment is reached by the continuation only (cosine sampling is already ideal there).
-//  * Russian roulette on the continuation from the rouletteStartBounce-th vertex on:
+//  * Russian roulette on the continuation from the kRouletteStartBounce-th vertex on:
 //    survival probability min(1, max channel of the path throughput), the survivor divided
 //    by it (unbiased).
 //  * maxBounces caps the number of diffuse vertices; the emission reached after the last one is
 //    still counted, so maxBounces = 0 keeps only what the probe sees directly. The cap
 //    truncates energy: in a closed room of albedo a the missing fraction is a^(maxBounces+1).
-//    The default, kDefaultMaxBounces = 64, puts that below the noise of any sample count (0.73^65
-//    = 1e-9 for the Cornell box's white); Russian roulette ends almost every path long before,
-//    so it costs nothing measurable against a cap of 8 (which lost 0.5-1.4% on the bundled
+//    The default, PathConfig::maxBounces = 64, puts that below the noise of any sample count
+//    (0.73^65 = 1e-9 for the Cornell box's white); Russian roulette ends almost every path long
+//    before, so it costs nothing measurable against a cap of 8 (which lost 0.5-1.4% on the bundled
 //    rooms).
 //
-// Adaptive sampling (PathSettings::noiseTarget > 0). The directions come in batches of B, each
+// Adaptive sampling (PathConfig::noiseTarget > 0). The directions come in batches of B, each
 // batch the first B points of its own independently scrambled Sobol sequence, so the batch
 // estimates are independent and each is unbiased; the probe is their mean. After every batch
 // from the minimum on, the probe's relative noise is estimated from the spread of the batch
@@ -56,6 +56,7 @@
 #include <glm/vec3.hpp>
 
 #include "light_sampler.hpp"
+#include "probekit/baker/config.hpp"
 #include "probekit/baker/scene.hpp"
 #include "probekit/formats/sh.hpp"
 #include "probekit/formats/volume.hpp"
@@ -65,7 +66,8 @@ namespace probekit::baker {
 
 class Rng;
 
-constexpr uint32_t kDefaultMaxBounces = 64;
+// The first path vertex whose continuation Russian roulette may terminate.
+constexpr uint32_t kRouletteStartBounce = 3;
 
 // Adaptive sampling: at least kMinBatches batches; a batch holds samples / kMinBatches
 // directions rounded down to a power of two, within kMinBatchSize..kMaxBatchSize.
@@ -73,30 +75,13 @@ constexpr uint32_t kMinBatches = 8;
 constexpr uint32_t kMinBatchSize = 16;
 constexpr uint32_t kMaxBatchSize = 1024;
 
-struct PathSettings {
-    uint32_t samples = 1024; // directions per probe (>= 1); the minimum when adaptive
-    uint32_t maxBounces = kDefaultMaxBounces; // diffuse vertices per path (see above)
-    uint32_t rouletteStartBounce = 3;         // first vertex whose continuation may be terminated
-    // Metres. Paths whose first hit is this far from the probe or farther stop there (as with
-    // maxBounces = 0): the VPL method gathers the light those surfaces reflect from its VPLs
-    // and path-traces only the near field (vpl_gather.hpp). Infinite for the path method.
-    float nearDistance = kInfinity;
-    // Adaptive sampling (see above): the relative noise each probe is traced down to, 0 = off
-    // (exactly `samples` directions from one Sobol sequence); and the most directions a probe
-    // may take (raised to the minimum if below it).
-    float noiseTarget = 0.0f;
-    uint32_t maxSamples = 1u << 16;
-    // Irradiance (W/m^2, RMS over the 18 components) the noise is measured against at least.
-    float noiseFloor = 0.0f;
-};
-
 // The batch size and the minimum and maximum batch counts adaptive sampling uses for `settings`.
 struct BatchPlan {
     uint32_t size;
     uint32_t minBatches;
     uint32_t maxBatches;
 };
-BatchPlan batchPlan(const PathSettings& settings);
+BatchPlan batchPlan(const PathConfig& config);
 
 struct ProbeSample {
     sh::ShRgb sh;           // radiance SH, world frame, `order` coefficients (rest zero)
@@ -118,9 +103,13 @@ inline uint8_t probeValidity(const ProbeSample& s, float backface_threshold) {
 class PathIntegrator {
 public:
     // `scene` and `tracer` (built from the same scene) must outlive the integrator. Builds the
-    // light-sampling distributions once.
-    PathIntegrator(const Scene& scene, const RayTracer& tracer, PathSettings settings,
-                   sh::Order order);
+    // light-sampling distributions once. `config` is the bake's PathConfig as the method uses
+    // it (vpl and lpv set their own direct-light samples and bounces in a copy). Paths whose
+    // first hit is `near_distance` metres from the probe or farther stop there (as with
+    // maxBounces = 0): the VPL method gathers the light those surfaces reflect from its VPLs
+    // and path-traces only the near field (vpl_gather.hpp); infinite for the other methods.
+    PathIntegrator(const Scene& scene, const RayTracer& tracer, PathConfig config, sh::Order order,
+                   float near_distance = kInfinity);
 
     // Thread-safe and deterministic: every random number comes from (seed, volume_index,
     // probe_index, sample index) through rng.hpp, so the result is bit-identical whatever the
@@ -148,7 +137,7 @@ public:
     SurfaceEstimate surfaceIrradiance(glm::vec3 position, glm::vec3 geometric_normal,
                                       glm::vec3 normal, uint32_t samples, uint64_t key) const;
 
-    const PathSettings& settings() const { return m_settings; }
+    const PathConfig& config() const { return m_config; }
 
 private:
     struct PathStats {
@@ -205,7 +194,8 @@ private:
 
     const Scene& m_scene;
     const RayTracer& m_tracer;
-    PathSettings m_settings;
+    PathConfig m_config;
+    float m_nearDistance;
     sh::Order m_order;
     LightSampler m_lights;
     bool m_environmentBlack;

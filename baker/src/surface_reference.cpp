@@ -49,7 +49,7 @@ traceSurfaceReference(const Scene& scene, std::span<const SurfaceRay> rays,
     if (!tracer) {
         return tracer.error();
     }
-    PathSettings path;
+    PathConfig path;
     path.samples = settings.samples;
     path.maxBounces = settings.maxBounces;
     const PathIntegrator integrator(scene, *tracer.value(), path, sh::Order::L2);

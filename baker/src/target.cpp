@@ -10,6 +10,7 @@
 #include "parallel.hpp"
 #include "path_integrator.hpp"
 #include "probekit/baker/bake.hpp"
+#include "probekit/baker/target.hpp"
 #include "ray_tracer.hpp"
 
 namespace probekit::baker {
@@ -73,7 +74,7 @@ Result<PointBake> bakePoints(const Scene& scene, const BakeConfig& config,
     if (!tracer) {
         return tracer.error();
     }
-    PathSettings settings;
+    PathConfig settings;
     settings.samples = samples;
     settings.maxBounces = config.path.maxBounces;
     const PathIntegrator integrator(scene, *tracer.value(), settings, sh::Order::L2);

@@ -74,17 +74,19 @@ float luminanceOf(glm::vec3 c) {
 
 } // namespace
 
-VplGatherer::VplGatherer(std::vector<Vpl> vpls, const RayTracer& tracer, VplGatherSettings settings,
+VplGatherer::VplGatherer(std::vector<Vpl> vpls, const RayTracer& tracer, const VplConfig& config,
                          uint64_t seed)
-    : m_tracer(tracer), m_settings(settings) {
-    assert(settings.cutError >= 0.0f);
+    : m_tracer(tracer), m_clamp(config.clamp), m_clampDistance(config.clampDistance.value_or(0.0f)),
+      m_nearField(config.nearField.value_or(0.0f)), m_shadows(config.shadows),
+      m_cutError(config.cutError) {
+    assert(m_cutError >= 0.0f);
     m_vpls.reserve(vpls.size());
     for (const Vpl& v : vpls) {
         if (luminanceOf(v.intensity) > 0.0f) {
             m_vpls.push_back(v);
         }
     }
-    if (m_vpls.empty() || settings.cutError == 0.0f) {
+    if (m_vpls.empty() || m_cutError == 0.0f) {
         return;
     }
     // Lightcuts' 6D metric weighs normals by a fraction of the scene size: a quarter of the
@@ -201,8 +203,8 @@ uint32_t VplGatherer::build(std::vector<uint32_t>& order, size_t begin, size_t e
 VplGatherer::Contribution VplGatherer::clamped(glm::vec3 offset, float d2,
                                                glm::vec3 towards_probe) const {
     const glm::vec3 direction = offset / std::sqrt(d2);
-    const float r2 = m_settings.clampDistance * m_settings.clampDistance;
-    switch (m_settings.clamp) {
+    const float r2 = m_clampDistance * m_clampDistance;
+    switch (m_clamp) {
     case VplClamp::None:
         break;
     case VplClamp::Distance:
@@ -227,10 +229,10 @@ VplGatherer::contribution(const Vpl& vpl, glm::vec3 position, glm::vec3 intensit
     if (!(height > 0.0f)) {
         return std::nullopt; // the probe is behind the lit side
     }
-    if (glm::dot(offset, offset) < m_settings.nearField * m_settings.nearField) {
+    if (glm::dot(offset, offset) < m_nearField * m_nearField) {
         return std::nullopt; // the near field is path-traced
     }
-    const float r = m_settings.clampDistance;
+    const float r = m_clampDistance;
     if (lifts() && height < r) {
         // The VSL tangent-plane lift (see the header): seen as from height r.
         offset -= (r - height) * vpl.normal;
@@ -260,8 +262,8 @@ std::optional<VplGatherer::Contribution> VplGatherer::estimate(const Node& node,
 }
 
 float VplGatherer::magnitudeFalloff(float d2) const {
-    const float r2 = m_settings.clampDistance * m_settings.clampDistance;
-    const float clamped = m_settings.clamp == VplClamp::None ? d2 : std::max(d2, r2);
+    const float r2 = m_clampDistance * m_clampDistance;
+    const float clamped = m_clamp == VplClamp::None ? d2 : std::max(d2, r2);
     return clamped > 0.0f ? 1.0f / clamped : INFINITY;
 }
 
@@ -270,7 +272,7 @@ VplGatherer::Bounds VplGatherer::bounds(const Node& node, glm::vec3 position) co
     const glm::vec3 far_offset =
         glm::max(glm::abs(position - node.boxMin), glm::abs(position - node.boxMax));
     const float far_d2 = glm::dot(far_offset, far_offset);
-    const float near_field2 = m_settings.nearField * m_settings.nearField;
+    const float near_field2 = m_nearField * m_nearField;
     if (far_d2 < near_field2) {
         return Bounds{0.0f, false}; // wholly in the path-traced near field
     }
@@ -336,15 +338,15 @@ VplGatherer::Bounds VplGatherer::bounds(const Node& node, glm::vec3 position) co
         if (lifts()) {
             // Members closer than r to their tangent plane are lifted: the centroid estimate
             // (no lift) is only for clusters whose every member lies farther.
-            all_facing = lowest >= m_settings.clampDistance;
+            all_facing = lowest >= m_clampDistance;
         }
     }
-    if (lifts() && m_settings.clampDistance > 0.0f) {
+    if (lifts() && m_clampDistance > 0.0f) {
         // A lifted member contributes I (r / d') / d'^2 with d' >= max(d, r): its cosine
         // factor is at most r / d_near.
-        cos_upper = std::max(
-            cos_upper,
-            near_d2 > 0.0f ? std::min(1.0f, m_settings.clampDistance / std::sqrt(near_d2)) : 1.0f);
+        cos_upper =
+            std::max(cos_upper,
+                     near_d2 > 0.0f ? std::min(1.0f, m_clampDistance / std::sqrt(near_d2)) : 1.0f);
     }
     // The centroid estimate counts every member: not for clusters reaching into the near field.
     all_facing = all_facing && near_d2 >= near_field2;
@@ -368,7 +370,7 @@ VplGatherResult VplGatherer::gather(glm::vec3 position, sh::Order order,
     if (m_vpls.empty()) {
         return VplGatherResult{};
     }
-    if (m_settings.cutError == 0.0f) {
+    if (m_cutError == 0.0f) {
         return gatherAll(position, order);
     }
     // Scalar irradiance (the integral of radiance over the sphere) is sqrt(4 pi) L00.
@@ -388,7 +390,7 @@ VplGatherResult VplGatherer::gatherAll(glm::vec3 position, sh::Order order) cons
     }
     std::vector<uint8_t> occluded(rays.size(), 0);
     VplGatherResult result;
-    if (m_settings.shadows) {
+    if (m_shadows) {
         m_tracer.occluded(rays, occluded, true);
         result.rays = rays.size();
     }
@@ -552,7 +554,7 @@ private:
         c.live = true;
         c.visible = true;
         // Nothing to trace without shadows or without a contribution.
-        c.traced = !m_g.m_settings.shadows || !c.hasContribution;
+        c.traced = !m_g.m_shadows || !c.hasContribution;
         if (known && !c.traced) {
             c.traced = true;
             c.visible = *known;
@@ -564,8 +566,8 @@ private:
 
     // One round of re-opening; false when no cluster exceeded the bound.
     bool reopen() {
-        const auto threshold = float(double(m_g.m_settings.cutError) *
-                                     std::max(m_total, kUnoccludedFloor * m_unoccluded));
+        const auto threshold =
+            float(double(m_g.m_cutError) * std::max(m_total, kUnoccludedFloor * m_unoccluded));
         m_violating.clear();
         for (uint32_t i = 0; i < m_cut.size(); ++i) {
             if (m_cut[i].live && m_cut[i].bound > threshold && m_live < kMaxCutSize) {
@@ -628,10 +630,10 @@ private:
 
 VplGatherResult VplGatherer::gatherCut(glm::vec3 position, sh::Order order, double baseline) const {
     Cut cut(*this, position, baseline);
-    cut.descend(0, float(double(m_settings.cutError) * cut.seedTotal()), std::nullopt);
+    cut.descend(0, float(double(m_cutError) * cut.seedTotal()), std::nullopt);
     // First without visibility: no rays for clusters about to be opened.
     cut.reopenRounds(false);
-    if (m_settings.shadows) {
+    if (m_shadows) {
         cut.settleVisibility();
     }
     return cut.result(order);

@@ -90,20 +90,12 @@
 
 #include <glm/vec3.hpp>
 
-#include "probekit/baker/bake.hpp"
+#include "probekit/baker/config.hpp"
 #include "probekit/formats/sh.hpp"
 #include "ray_tracer.hpp"
 #include "vpl_paths.hpp"
 
 namespace probekit::baker {
-
-struct VplGatherSettings {
-    VplClamp clamp = VplClamp::Spherical;
-    float clampDistance = 0.0f; // metres, distance and spherical clamps
-    float nearField = 0.0f;     // metres: VPLs nearer to the probe are left to paths (0 = none)
-    bool shadows = true;
-    float cutError = 0.005f; // lightcut bound per cluster / probe total; 0 = every VPL
-};
 
 struct VplGatherResult {
     sh::ShRgb sh;            // radiance SH of the VPLs' light at the probe, `order` coefficients
@@ -120,7 +112,10 @@ class VplGatherer {
 public:
     // Takes the VPLs (those of zero intensity are dropped) and builds the light tree (unless
     // cutError is 0). `tracer` must outlive the gatherer.
-    VplGatherer(std::vector<Vpl> vpls, const RayTracer& tracer, VplGatherSettings settings,
+    // `config` as resolveVplConfig leaves it (clamp, clampDistance, nearField, shadows,
+    // cutError are read; an unset clampDistance or nearField counts as 0: no clamp radius, no
+    // near field).
+    VplGatherer(std::vector<Vpl> vpls, const RayTracer& tracer, const VplConfig& config,
                 uint64_t seed);
 
     // `direct` is the probe's light from other sources (radiance SH, e.g. the direct light):
@@ -181,9 +176,7 @@ private:
     // The spherical clamp's tangent-plane lift is on only without a near field: it trades the
     // light a plane's near part loses for more from its far part, which is wrong once the
     // near part is path-traced.
-    bool lifts() const {
-        return m_settings.clamp == VplClamp::Spherical && m_settings.nearField == 0.0f;
-    }
+    bool lifts() const { return m_clamp == VplClamp::Spherical && m_nearField == 0.0f; }
     // U_C (0: no member faces the probe), and whether every member faces it.
     struct Bounds {
         float upper;
@@ -203,7 +196,11 @@ private:
     std::vector<Vpl> m_vpls;
     std::vector<Node> m_nodes;
     const RayTracer& m_tracer;
-    VplGatherSettings m_settings;
+    VplClamp m_clamp;
+    float m_clampDistance; // metres, distance and spherical clamps
+    float m_nearField;     // metres: VPLs nearer to the probe are left to paths (0 = none)
+    bool m_shadows;
+    float m_cutError; // lightcut bound per cluster / probe total; 0 = every VPL
 };
 
 } // namespace probekit::baker

@@ -2,32 +2,28 @@
 
 namespace probekit::baker {
 
-PathSettings VplProbeIntegrator::directSettings(const VplConfig& config, uint32_t samples,
-                                                const PathConfig* adaptive) {
-    PathSettings settings;
-    settings.samples = samples;
-    settings.maxBounces = config.bounces;
-    settings.nearDistance = *config.nearField;
-    if (adaptive != nullptr) {
-        settings.noiseTarget = adaptive->noiseTarget;
-        settings.maxSamples = adaptive->maxSamples;
-        settings.noiseFloor = adaptive->noiseFloor;
-    }
-    return settings;
+PathConfig VplProbeIntegrator::directConfig(const VplConfig& config, uint32_t samples,
+                                            const PathConfig* adaptive) {
+    PathConfig path = adaptive != nullptr ? *adaptive : PathConfig{};
+    path.samples = samples;
+    path.maxBounces = config.bounces;
+    return path;
 }
 
 VplProbeIntegrator::VplProbeIntegrator(const Scene& scene, const RayTracer& tracer,
                                        const VplGatherer& gatherer, const VplConfig& config,
                                        const PathConfig& path, sh::Order order)
-    : m_direct(scene, tracer, directSettings(config, config.directSamples, &path), order),
+    : m_direct(scene, tracer, directConfig(config, config.directSamples, &path), order,
+               *config.nearField),
       m_boosted(scene, tracer,
-                directSettings(config, config.directSamples * kNearFieldBoost, nullptr), order),
+                directConfig(config, config.directSamples * kNearFieldBoost, nullptr), order,
+                *config.nearField),
       m_gatherer(gatherer), m_order(order) {}
 
 VplProbeSample VplProbeIntegrator::bakeProbe(glm::vec3 position, uint64_t seed,
                                              uint32_t volume_index, uint64_t probe_index) const {
     VplProbeSample result;
-    if (m_direct.settings().noiseTarget > 0.0f) {
+    if (m_direct.config().noiseTarget > 0.0f) {
         const VplGatherResult g = m_gatherer.gather(position, m_order, sh::ShRgb{});
         result.probe = m_direct.bakeProbe(position, seed, volume_index, probe_index, &g.sh);
         result.probe.sh += g.sh;

@@ -25,7 +25,7 @@
 #include <glm/vec3.hpp>
 
 #include "path_integrator.hpp"
-#include "probekit/baker/bake.hpp"
+#include "probekit/baker/config.hpp"
 #include "vpl_gather.hpp"
 
 namespace probekit::baker {
@@ -49,9 +49,10 @@ public:
                              uint64_t probe_index) const;
 
 private:
-    // The direct part's settings; `adaptive` (null: fixed sampling) gives adaptive sampling's.
-    static PathSettings directSettings(const VplConfig& config, uint32_t samples,
-                                       const PathConfig* adaptive);
+    // The direct part's path settings: `samples` directions, config.bounces; `adaptive` (null:
+    // fixed sampling) gives adaptive sampling's target, cap and floor.
+    static PathConfig directConfig(const VplConfig& config, uint32_t samples,
+                                   const PathConfig* adaptive);
 
     PathIntegrator m_direct;
     PathIntegrator m_boosted;

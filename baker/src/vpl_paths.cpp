@@ -423,11 +423,11 @@ std::array<double, kVplPathDimensions> VplPathSampler::operator()(uint32_t index
     return u;
 }
 
-VplSet traceVpls(const Scene& scene, const RayTracer& tracer, const VplPathSettings& settings,
-                 uint64_t seed) {
-    assert(settings.count >= 1 && settings.bounces >= 1);
+VplSet traceVpls(const Scene& scene, const RayTracer& tracer, uint32_t count,
+                 const VplConfig& config, uint64_t seed) {
+    assert(count >= 1 && config.bounces >= 1);
     VplSet set;
-    const LightPathTracer paths(scene, tracer, settings.bounces);
+    const LightPathTracer paths(scene, tracer, config.bounces);
     if (!scene.hasGeometry() || !paths.canEmit()) {
         return set;
     }
@@ -440,16 +440,15 @@ VplSet traceVpls(const Scene& scene, const RayTracer& tracer, const VplPathSetti
         Rng rng(hashKeys(pilot_seed, kContinueStream, i));
         pilot_vpls += paths.trace(pilot_sampler(i), rng, 1.0f, nullptr, set.rays);
     }
-    const uint64_t most_paths = uint64_t(kVplMaxPathsPerVpl) * settings.count;
+    const uint64_t most_paths = uint64_t(kVplMaxPathsPerVpl) * count;
     const uint64_t path_count =
-        pilot_vpls == 0
-            ? most_paths
-            : std::min(most_paths,
-                       (uint64_t(settings.count) * kVplPilotPaths + pilot_vpls - 1) / pilot_vpls);
+        pilot_vpls == 0 ? most_paths
+                        : std::min(most_paths, (uint64_t(count) * kVplPilotPaths + pilot_vpls - 1) /
+                                                   pilot_vpls);
     const auto n = uint32_t(std::min<uint64_t>(path_count, UINT32_MAX));
 
-    const VplPathSampler sampler(settings.sampling, seed, n);
-    set.vpls.reserve(size_t(settings.count) + settings.count / 8);
+    const VplPathSampler sampler(config.sampling, seed, n);
+    set.vpls.reserve(size_t(count) + count / 8);
     const float flux_scale = 1.0f / float(n);
     for (uint32_t i = 0; i < n; ++i) {
         Rng rng(hashKeys(seed, kContinueStream, i));

@@ -40,7 +40,7 @@
 
 #include <glm/vec3.hpp>
 
-#include "probekit/baker/bake.hpp"
+#include "probekit/baker/config.hpp"
 #include "probekit/baker/scene.hpp"
 #include "ray_tracer.hpp"
 
@@ -51,12 +51,6 @@ struct Vpl {
     glm::vec3 normal;       // unit: the side the light arrived from (it reflects only into it)
     glm::vec3 intensity;    // radiant intensity along `normal`, W/sr: albedo x flux / pi
     glm::vec3 shadowTarget; // `position` moved off the surface to the lit side (offsetOrigin)
-};
-
-struct VplPathSettings {
-    uint32_t count = 16384; // VPLs wanted (>= 1); light paths are sized by a pilot run
-    uint32_t bounces = 64;  // hits per light path (>= 1)
-    VplSampling sampling = VplSampling::Stratified;
 };
 
 struct VplSet {
@@ -71,8 +65,10 @@ struct VplSet {
 // empty set when the scene has no light or no geometry.
 constexpr uint32_t kVplPilotPaths = 1024;
 constexpr uint32_t kVplMaxPathsPerVpl = 64;
-VplSet traceVpls(const Scene& scene, const RayTracer& tracer, const VplPathSettings& settings,
-                 uint64_t seed);
+// `count` VPLs wanted (>= 1); `config` gives the hits per light path (bounces, >= 1) and the
+// light-path sampling.
+VplSet traceVpls(const Scene& scene, const RayTracer& tracer, uint32_t count,
+                 const VplConfig& config, uint64_t seed);
 
 // The solid angle a point or spot light shines into, weighted by its falloff, sr: 4 pi for a
 // point light, the integral of the glTF cone falloff above for a spot; 0 for a directional

@@ -32,6 +32,7 @@
 #include "bricked.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/generators.hpp"
+#include "probekit/baker/target.hpp"
 #include "probekit/formats/brick.hpp"
 #include "probekit/formats/pvol.hpp"
 #include "probekit/runtime/sampler.hpp"
@@ -242,6 +243,21 @@ BorderWalk walkBorders(const Volume& v, float step = kBorderStep,
 // --- analytic fields for bakeBricked -------------------------------------------------------------
 
 using Field = std::function<double(glm::dvec3)>;
+
+// The settings of an analytic bricked bake: no visibility and no deringing (the fields are
+// exact), an unlimited GPU budget unless a test sets one.
+struct AnalyticSettings {
+    BakeConfig config;
+    VolumeConfig volume;
+    AnalyticSettings(uint32_t max_level, float refine_error) {
+        config.visibility = false;
+        config.dering = false;
+        config.maxMemoryBytes = ~uint64_t(0);
+        volume.maxLevel = max_level;
+        volume.refineError = refine_error;
+    }
+    operator BrickedSettings() const { return BrickedSettings{config, volume}; }
+};
 
 // Every probe's radiance is L00 only, chosen so that E(n) = f(p) for every normal and channel.
 ProbeBatchFn analyticBatch(Field field, std::function<bool(glm::vec3)> solid = {}) {
@@ -481,9 +497,7 @@ TEST(BrickedRefinement, StitchingRemovesTheJumpsOfRawProbes) {
     const Field f = [](glm::dvec3 p) {
         return 1.0 + p.x + 3.0 * gaussian(p, glm::dvec3(0.21, 0.33, 0.27), 0.06);
     };
-    BrickedSettings s;
-    s.maxLevel = 2;
-    s.refineError = 0.01f;
+    const AnalyticSettings s(2, 0.01f);
     Result<BrickedOutcome> o =
         bakeBricked(coveringScene(box), desc, sh::Order::L1, s, analyticBatch(f));
     ASSERT_TRUE(o.ok()) << o.error().message;
@@ -532,11 +546,9 @@ TEST(BrickedRefinement, TrilinearFieldRefinesNowhereEvenNearGeometry) {
     const Field f = [](glm::dvec3 p) {
         return 4.0 + p.x + 2.0 * p.y - p.z + 0.5 * p.x * p.y * p.z;
     };
-    BrickedSettings s;
-    s.maxLevel = 2;
     // Far below any useful threshold: float rounding of an exact interpolation (~1e-7 of the
     // values) is all the disagreement there is.
-    s.refineError = 1e-4f;
+    const AnalyticSettings s(2, 1e-4f);
     Result<BrickedOutcome> near =
         bakeBricked(coveringScene(box), desc, sh::Order::L1, s, analyticBatch(f));
     ASSERT_TRUE(near.ok()) << near.error().message;
@@ -560,9 +572,7 @@ TEST(BrickedRefinement, SharpFeatureRefinesAroundItselfOnly) {
     const Field f = [&](glm::dvec3 p) {
         return 1.0 + p.x + 2.0 * p.y - p.z + 3.0 * gaussian(p, centre, kSigma);
     };
-    BrickedSettings s;
-    s.maxLevel = 2;
-    s.refineError = 0.01f;
+    const AnalyticSettings s(2, 0.01f);
     Result<BrickedOutcome> o =
         bakeBricked(coveringScene(box), desc, sh::Order::L1, s, analyticBatch(f));
     ASSERT_TRUE(o.ok()) << o.error().message;
@@ -609,9 +619,7 @@ TEST(BrickedRefinement, AllInvalidBrickIsNotRefinedThoughItsFieldIsSharp) {
     };
     // A solid slightly larger than brick (0, 0, 0)'s region [0, 0.5]^3.
     auto solid = [](glm::vec3 p) { return glm::all(glm::lessThanEqual(p, glm::vec3(0.51f))); };
-    BrickedSettings s;
-    s.maxLevel = 1;
-    s.refineError = 0.01f;
+    const AnalyticSettings s(1, 0.01f);
     Result<BrickedOutcome> with_solid =
         bakeBricked(coveringScene(box), desc, sh::Order::L1, s, analyticBatch(f, solid));
     Result<BrickedOutcome> open =
@@ -950,9 +958,7 @@ TEST(BrickedBudget, DropsTheCheapestRefinementFirst) {
     std::printf("[budget analytic] octant disagreement: sharp %.4f..%.4f, mild <= %.4f (scale "
                 "%.4f)\n",
                 d_sharp, d_sharp_most, d_mild, scale);
-    BrickedSettings s;
-    s.maxLevel = 1;
-    s.refineError = 0.002f;
+    AnalyticSettings s(1, 0.002f);
     const Scene scene = coveringScene(box);
 
     Result<BrickedOutcome> unlimited = bakeBricked(scene, desc, sh::Order::L1, s, analyticBatch(f));
@@ -962,28 +968,28 @@ TEST(BrickedBudget, DropsTheCheapestRefinementFirst) {
     EXPECT_EQ(unlimited.value().budgetDropped, 0u);
 
     // Room for 2 + 8 bricks at max level 1: the mild bump's eight go.
-    s.budgetBytes = brickedGpuBytes(top, 1, 10, sh::Order::L1, Storage::Float32);
+    s.config.maxMemoryBytes = brickedGpuBytes(top, 1, 10, sh::Order::L1, Storage::Float32);
     Result<BrickedOutcome> one = bakeBricked(scene, desc, sh::Order::L1, s, analyticBatch(f));
     ASSERT_TRUE(one.ok()) << one.error().message;
     const Volume v1 = volumeOf(one.value());
     EXPECT_EQ(one.value().budgetDropped, 8u);
     EXPECT_EQ(shownAt(v1, glm::vec3(1.5f, 0.5f, 0.5f)), mild);
     EXPECT_EQ(shownAt(v1, glm::vec3(0.5f, 0.5f, 0.5f)).level, 1);
-    EXPECT_EQ(v1.gpuBytes(), s.budgetBytes);
+    EXPECT_EQ(v1.gpuBytes(), s.config.maxMemoryBytes);
     EXPECT_NEAR(one.value().budgetError, d_mild, kAnalyticRelTolerance * d_mild);
 
     // Room for the two level-0 bricks alone (and their smaller indirection): all 16 go.
-    s.budgetBytes = brickedGpuBytes(top, 0, 2, sh::Order::L1, Storage::Float32);
+    s.config.maxMemoryBytes = brickedGpuBytes(top, 0, 2, sh::Order::L1, Storage::Float32);
     Result<BrickedOutcome> none = bakeBricked(scene, desc, sh::Order::L1, s, analyticBatch(f));
     ASSERT_TRUE(none.ok()) << none.error().message;
     const Volume v0 = volumeOf(none.value());
     EXPECT_EQ(none.value().budgetDropped, 16u);
     EXPECT_EQ(none.value().bricksPerLevel[0], 2u);
     EXPECT_EQ(none.value().desc.bricks.maxLevel, 0u);
-    EXPECT_EQ(v0.gpuBytes(), s.budgetBytes);
+    EXPECT_EQ(v0.gpuBytes(), s.config.maxMemoryBytes);
     EXPECT_NEAR(none.value().budgetError, d_sharp_most, kAnalyticRelTolerance * d_sharp_most);
 
-    s.budgetBytes -= 1;
+    s.config.maxMemoryBytes -= 1;
     Result<BrickedOutcome> too_small = bakeBricked(scene, desc, sh::Order::L1, s, analyticBatch(f));
     ASSERT_FALSE(too_small.ok());
     EXPECT_NE(too_small.error().message.find("level 0 alone"), std::string::npos)
@@ -1005,11 +1011,10 @@ TEST(BrickedRefinement, KeepsExactlyTheOctantsAboveTheThreshold) {
     std::vector<double> sorted(d, d + 8);
     std::sort(sorted.begin(), sorted.end());
     std::printf("[rule] octant disagreements %.5f .. %.5f\n", sorted[0], sorted[7]);
-    BrickedSettings s;
-    s.maxLevel = 1;
+    AnalyticSettings s(1, 0.0f);
     const Scene scene = coveringScene(box);
     auto bake_at = [&](double threshold) {
-        s.refineError = float(threshold);
+        s.volume.refineError = float(threshold);
         Result<BrickedOutcome> o = bakeBricked(scene, desc, sh::Order::L1, s, analyticBatch(f));
         EXPECT_TRUE(o.ok());
         return std::move(o).value();

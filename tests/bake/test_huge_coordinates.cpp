@@ -10,6 +10,7 @@
 
 #include "bake_test_support.hpp"
 #include "coordinate_range.hpp"
+#include "probekit/baker/target.hpp"
 #include "ray_tracer.hpp"
 
 namespace probekit::baker {

@@ -17,6 +17,7 @@
 #include <gtest/gtest.h>
 
 #include "bake_test_support.hpp"
+#include "probekit/baker/target.hpp"
 #include "probekit/runtime/sampler.hpp"
 
 namespace probekit {

@@ -346,7 +346,7 @@ struct ShEstimate {
 };
 
 std::vector<ProbeSample> bakeProbes(const Scene& scene, const RayTracer& tracer,
-                                    PathSettings settings, sh::Order order, glm::vec3 position,
+                                    PathConfig settings, sh::Order order, glm::vec3 position,
                                     int count = kProbes, uint64_t seed = 1) {
     const PathIntegrator integrator(scene, tracer, settings, order);
     std::vector<ProbeSample> probes;
@@ -558,10 +558,9 @@ TEST(PathTracerFurnace, ClosedSphereRadianceIsEmissionOverOneMinusAlbedo) {
         const auto tracer = buildTracer(scene);
         ASSERT_TRUE(tracer);
         for (const uint32_t bounces : {0u, 1u, 2u, 64u}) {
-            PathSettings settings;
+            PathConfig settings;
             settings.samples = 2048;
             settings.maxBounces = bounces;
-            settings.rouletteStartBounce = 3;
             const auto probes =
                 bakeProbes(scene, *tracer, settings, sh::Order::L2, glm::vec3(0.1f, -0.2f, 0.15f));
             glm::dvec3 radiance(0.0);
@@ -599,7 +598,7 @@ TEST(PathTracerPointLight, DeltaProjectionGivesBandLimitedIrradiance) {
     const glm::dvec3 e = glm::dvec3(light.intensity) / d2;
 
     for (const sh::Order order : {sh::Order::L1, sh::Order::L2}) {
-        PathSettings settings;
+        PathConfig settings;
         settings.samples = 16;
         const PathIntegrator integrator(scene, *tracer, settings, order);
         const ProbeSample sample = integrator.bakeProbe(probe, 7, 0, 0);
@@ -647,7 +646,7 @@ TEST(PathTracerSpotLight, ConeFalloffAndRangeWindow) {
     scene.lights.push_back(spot);
     const auto tracer = buildTracer(scene);
     ASSERT_TRUE(tracer);
-    PathSettings settings;
+    PathConfig settings;
     settings.samples = 4;
     const PathIntegrator integrator(scene, *tracer, settings, sh::Order::L2);
 
@@ -690,7 +689,7 @@ TEST(PathTracerPointLight, OccluderKillsDeltaTerm) {
         }
         const auto tracer = buildTracer(scene);
         ASSERT_TRUE(tracer);
-        PathSettings settings;
+        PathConfig settings;
         settings.samples = 64;
         const PathIntegrator integrator(scene, *tracer, settings, sh::Order::L2);
         const ProbeSample sample = integrator.bakeProbe(glm::vec3(0.0f), 1, 0, 0);
@@ -746,7 +745,7 @@ TEST(PathTracerPointLight, PointAndDirectionalLightOnFloorMatchQuadrature) {
         reference[c] += glm::dvec3(point.intensity) / glm::dot(v, v) * y_point[c] +
                         glm::dvec3(sun.intensity) * y_sun[c];
     }
-    PathSettings settings;
+    PathConfig settings;
     settings.samples = 4096;
     settings.maxBounces = 4;
     const ShEstimate e =
@@ -764,7 +763,7 @@ TEST(PathTracerEnvironment, ConstantSkyGivesPiLIrradiance) {
     scene.environment.intensity = 1.0f;
     const auto tracer = buildTracer(scene);
     ASSERT_TRUE(tracer);
-    PathSettings settings;
+    PathConfig settings;
     settings.samples = 256;
     const auto probes = bakeProbes(scene, *tracer, settings, sh::Order::L2, glm::vec3(0.0f));
     const ShEstimate e = estimate(probes);
@@ -819,7 +818,7 @@ TEST(PathTracerEnvironment, LatLongSkyMatchesNumericalIntegration) {
     scene.environment = syntheticSky(false);
     const auto tracer = buildTracer(scene);
     ASSERT_TRUE(tracer);
-    PathSettings settings;
+    PathConfig settings;
     settings.samples = 4096;
     const ShEstimate e =
         estimate(bakeProbes(scene, *tracer, settings, sh::Order::L2, glm::vec3(0.0f)));
@@ -860,7 +859,7 @@ TEST(PathTracerEmissive, QuadSeenDirectlyMatchesLambertFormulaFromBothSides) {
     computeBounds(scene);
     const auto tracer = buildTracer(scene);
     ASSERT_TRUE(tracer);
-    PathSettings settings;
+    PathConfig settings;
     settings.samples = 4096;
     for (const glm::dvec3 probe : {glm::dvec3(0.2, 0.0, 0.1), glm::dvec3(0.2, 2.0, 0.1)}) {
         const auto probes = bakeProbes(scene, *tracer, settings, sh::Order::L1, glm::vec3(probe));
@@ -930,7 +929,7 @@ TEST(PathTracerEmissive, QuadLightingFloorMatchesQuadrature) {
     for (int c = 0; c < sh::kMaxCoefficients; ++c) {
         reference[c] = direct[c] + reflected[c];
     }
-    PathSettings settings;
+    PathConfig settings;
     settings.samples = 4096;
     settings.maxBounces = 4;
     const ShEstimate e =
@@ -970,7 +969,7 @@ TEST(PathTracerEnvironment, SkyLightingFloorMatchesQuadrature) {
     for (int c = 0; c < sh::kMaxCoefficients; ++c) {
         reference[c] = sky[c] + reflected[c];
     }
-    PathSettings settings;
+    PathConfig settings;
     settings.samples = 4096;
     settings.maxBounces = 4;
     const ShEstimate e =
@@ -1002,7 +1001,7 @@ TEST(PathTracerEnvironment, ConstantSkyLightingFloorMatchesQuadrature) {
     for (int c = 0; c < sh::kMaxCoefficients; ++c) {
         reference[c] -= hidden[c];
     }
-    PathSettings settings;
+    PathConfig settings;
     settings.samples = 4096;
     settings.maxBounces = 4;
     const ShEstimate e =
@@ -1024,7 +1023,7 @@ TEST(PathTracerEnvironment, UffiziL00MatchesPixelSum) {
     scene.environment = std::move(env).value();
     const auto tracer = buildTracer(scene);
     ASSERT_TRUE(tracer);
-    PathSettings settings;
+    PathConfig settings;
     settings.samples = 4096;
     const ShEstimate e =
         estimate(bakeProbes(scene, *tracer, settings, sh::Order::L1, glm::vec3(0.0f)));
@@ -1085,7 +1084,7 @@ TEST(PathTracerValidity, BackFaceFractionInsideAndOutsideClosedBox) {
     computeBounds(scene);
     const auto tracer = buildTracer(scene);
     ASSERT_TRUE(tracer);
-    PathSettings settings;
+    PathConfig settings;
     settings.samples = 256;
     const PathIntegrator integrator(scene, *tracer, settings, sh::Order::L1);
     // Every primary ray from inside hits the inside of an outward-wound face.
@@ -1110,7 +1109,7 @@ TEST(PathTracerDeterminism, SameInputsBitIdenticalAcrossThreads) {
     // Fixed sampling, and adaptive sampling whose probes stop after different batch counts.
     for (const float noise_target : {0.0f, 0.02f}) {
         SCOPED_TRACE(noise_target);
-        PathSettings settings;
+        PathConfig settings;
         settings.samples = 64;
         settings.noiseTarget = noise_target;
         const PathIntegrator integrator(scene, *tracer, settings, sh::Order::L2);
@@ -1151,7 +1150,7 @@ TEST(PathTracerDeterminism, SameInputsBitIdenticalAcrossThreads) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Adaptive sampling (PathSettings::noiseTarget).
+// Adaptive sampling (PathConfig::noiseTarget).
 
 // Irradiance at the six axis normals, three channels: the error measure adaptive sampling
 // estimates its noise in (irradiance_error.hpp).
@@ -1187,7 +1186,7 @@ sh::ShRgb toFloat(const ShDouble& d) {
 // Returns the mean directions per probe.
 constexpr int kCalibrationProbes = 256;
 double expectAdaptiveCalibrated(const std::string& what, const Scene& scene,
-                                const RayTracer& tracer, const PathSettings& settings,
+                                const RayTracer& tracer, const PathConfig& settings,
                                 glm::vec3 position, const ShDouble& reference) {
     const auto probes =
         bakeProbes(scene, tracer, settings, sh::Order::L2, position, kCalibrationProbes, 7);
@@ -1237,7 +1236,7 @@ TEST(PathTracerAdaptive, NoiseEstimateUnbiasedOnAnalyticScenes) {
         computeBounds(scene);
         const auto tracer = buildTracer(scene);
         ASSERT_TRUE(tracer);
-        PathSettings settings;
+        PathConfig settings;
         settings.samples = 128;
         settings.noiseTarget = 0.03f;
         const double mean_samples = expectAdaptiveCalibrated(
@@ -1274,7 +1273,7 @@ TEST(PathTracerAdaptive, NoiseEstimateUnbiasedOnAnalyticScenes) {
         for (int c = 0; c < sh::kMaxCoefficients; ++c) {
             reference[c] = direct[c] + reflected[c];
         }
-        PathSettings settings;
+        PathConfig settings;
         settings.samples = 128;
         settings.maxBounces = 4;
         // The estimate alone: every probe held at its minimum (8 batches of 16, then of 128),
@@ -1299,7 +1298,7 @@ TEST(PathTracerAdaptive, NoiseEstimateUnbiasedOnAnalyticScenes) {
 
 // Batch plan: kMinBatches batches of a power of two from the minimum, the cap in whole batches.
 TEST(PathTracerAdaptive, BatchPlanFollowsTheMinimumAndTheCap) {
-    PathSettings s;
+    PathConfig s;
     s.samples = 1024;
     s.maxSamples = 65536;
     BatchPlan p = batchPlan(s);

@@ -3,10 +3,12 @@
 // them to it: every setting parses from the config, sets from its command-line text with the
 // same error the config gives, round-trips through describeConfig, and is documented in the
 // README; a config built in code is validated by bake() in every build type.
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <set>
 #include <sstream>
 
 #include <gtest/gtest.h>
@@ -183,6 +185,61 @@ TEST(Settings, PerVolumeSettingsSetEveryVolume) {
     EXPECT_FALSE(c.vpl.nearField.has_value());
     ASSERT_TRUE(setBakeSetting(c, "vpl.near_field", "0.5").ok());
     EXPECT_EQ(c.vpl.nearField, 0.5f);
+}
+
+// Every key of a JSON object, at any depth.
+void collectKeys(const Json& j, std::set<std::string>& keys) {
+    if (j.is_object()) {
+        for (const auto& [key, value] : j.items()) {
+            keys.insert(key);
+            collectKeys(value, keys);
+        }
+    } else if (j.is_array()) {
+        for (const Json& e : j) {
+            collectKeys(e, keys);
+        }
+    }
+}
+
+// The fuzz dictionary's source (configVocabulary) holds every key a config can hold, written
+// out by describeConfig for configs that use every kind of bounds, environment and layout, and
+// every name a setting admits, so tools/fuzz.sh never gives the fuzzer a stale dictionary.
+TEST(Settings, TheConfigVocabularyHoldsEveryKeyAndName) {
+    const std::vector<std::string> vocabulary = configVocabulary();
+    const std::set<std::string> words(vocabulary.begin(), vocabulary.end());
+    EXPECT_TRUE(std::is_sorted(vocabulary.begin(), vocabulary.end()));
+    EXPECT_EQ(words.size(), vocabulary.size()) << "no word twice";
+
+    const char* configs[] = {
+        R"({"environment": {"type": "constant", "radiance": [1, 1, 1]},
+            "volumes": [{"name": "a", "layout": "bricked", "resolution": [2, 2, 2],
+                         "bounds": {"mode": "custom", "center": [0, 0, 0], "size": [1, 1, 1],
+                                    "padding": 0.5}},
+                        {"name": "b", "bounds": {"mode": "auto-world", "nodes": ["n"]}},
+                        {"name": "c", "bounds": {"mode": "auto-local", "node": "n"}}]})",
+        R"({"method": "vpl", "environment": {"type": "latlong", "file": "sky.hdr"},
+            "volumes": [{"bounds": {"mode": "custom", "min": [0, 0, 0], "max": [1, 1, 1]}}]})",
+    };
+    std::set<std::string> keys;
+    for (const char* text : configs) {
+        Result<BakeConfig> c = parseBakeConfig(text, "vocabulary.json", "/nonexistent");
+        ASSERT_TRUE(c.ok()) << c.error().message;
+        collectKeys(Json::parse(text), keys);
+        collectKeys(Json::parse(describeConfig(c.value())), keys);
+    }
+    for (const std::string& key : keys) {
+        EXPECT_TRUE(words.count(key)) << "key '" << key << "' is missing from configVocabulary";
+    }
+    for (const SettingInfo& s : bakeSettings()) {
+        EXPECT_TRUE(words.count(s.path.substr(s.path.rfind('.') + 1))) << s.path;
+        if (s.type != "NAME") {
+            continue;
+        }
+        std::stringstream names(s.admits.substr(s.admits.rfind("auto or ", 0) == 0 ? 8 : 0));
+        for (std::string name; std::getline(names >> std::ws, name, ',');) {
+            EXPECT_TRUE(words.count(name)) << s.path << " admits '" << name << "'";
+        }
+    }
 }
 
 // A config built in code gets the errors the config file would give, from bake() itself.

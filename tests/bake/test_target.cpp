@@ -11,6 +11,7 @@
 #include "bake_test_support.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/generators.hpp"
+#include "probekit/baker/target.hpp"
 #include "probekit/runtime/sampler.hpp"
 
 using namespace probekit;

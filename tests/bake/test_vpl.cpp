@@ -290,11 +290,10 @@ TEST(VplPaths, TotalFluxIsAlbedoTimesPowerReachingTheFloor) {
         const auto tracer = tracerFor(scene);
         ASSERT_TRUE(tracer);
         for (const VplSampling sampling : {VplSampling::Random, VplSampling::Stratified}) {
-            VplPathSettings settings;
-            settings.count = kCount;
+            VplConfig settings;
             settings.bounces = 1;
             settings.sampling = sampling;
-            const VplSet set = traceVpls(scene, *tracer, settings, 3);
+            const VplSet set = traceVpls(scene, *tracer, kCount, settings, 3);
             double flux = 0.0;
             for (const Vpl& v : set.vpls) {
                 flux += kPi * double(v.intensity.x); // intensity = albedo x flux / pi
@@ -329,12 +328,11 @@ TEST(VplPaths, BouncesCapGenerationsAndRussianRouletteKeepsEnergy) {
     const Scene scene = b.finish();
     const auto tracer = tracerFor(scene);
     ASSERT_TRUE(tracer);
-    VplPathSettings settings;
-    settings.count = 16384;
+    VplConfig settings;
     double flux_one = 0.0;
     for (const uint32_t bounces : {1u, 64u}) {
         settings.bounces = bounces;
-        const VplSet set = traceVpls(scene, *tracer, settings, 5);
+        const VplSet set = traceVpls(scene, *tracer, 16384, settings, 5);
         double flux = 0.0;
         for (const Vpl& v : set.vpls) {
             flux += kPi * double(v.intensity.x);
@@ -447,14 +445,12 @@ TEST(VplFloor, IndirectIrradianceMatchesQuadrature) {
     const glm::vec3 probe(-0.3f, 0.5f, 0.2f);
     const ShDouble reference =
         floorSh(glm::dvec3(probe), glm::dvec3(light), kIntensity, kFloorAlbedo);
-    VplGatherSettings gather;
+    VplConfig gather;
     gather.clamp = VplClamp::None;
     gather.cutError = 0.0f;
     std::vector<sh::ShRgb> estimates;
     for (int seed = 0; seed < kSeeds; ++seed) {
-        VplPathSettings settings;
-        settings.count = 4096;
-        VplSet set = traceVpls(scene, *tracer, settings, uint64_t(100 + seed));
+        VplSet set = traceVpls(scene, *tracer, 4096, VplConfig{}, uint64_t(100 + seed));
         const VplGatherer gatherer(std::move(set.vpls), *tracer, gather, uint64_t(seed));
         estimates.push_back(gatherer.gather(probe, sh::Order::L2, sh::ShRgb{}).sh);
     }
@@ -724,11 +720,9 @@ TEST_F(VplRoom, SphericalClampKeepsTheCornerSpikeNearTheAverage) {
 TEST_F(VplRoom, LightcutErrorStaysWithinItsBound) {
     const auto tracer = tracerFor(*s_scene);
     ASSERT_TRUE(tracer);
-    VplPathSettings paths;
-    paths.count = 16384;
-    const VplSet set = traceVpls(*s_scene, *tracer, paths, 9);
+    const VplSet set = traceVpls(*s_scene, *tracer, 16384, VplConfig{}, 9);
     for (const bool shadows : {true, false}) {
-        VplGatherSettings settings;
+        VplConfig settings;
         settings.clampDistance = 0.05f;
         settings.shadows = shadows;
         const VplGatherer cut(set.vpls, *tracer, settings, 9);

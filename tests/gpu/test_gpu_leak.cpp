@@ -16,6 +16,7 @@
 #include "gpu_test_support.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/generators.hpp"
+#include "probekit/baker/target.hpp"
 #include "probekit/runtime/gpu_volumes.hpp"
 #include "probekit/runtime/point_sampler.hpp"
 #include "probekit/runtime/sampler.hpp"

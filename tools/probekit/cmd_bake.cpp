@@ -20,6 +20,7 @@
 #include "probekit/baker/generators.hpp"
 #include "probekit/baker/scene_summary.hpp"
 #include "probekit/baker/settings.hpp"
+#include "probekit/baker/target.hpp"
 #include "probekit/runtime/sampler.hpp"
 #include "terminal_text.hpp"
 

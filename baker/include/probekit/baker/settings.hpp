@@ -11,7 +11,7 @@
 #include <string_view>
 #include <vector>
 
-#include "probekit/baker/bake.hpp"
+#include "probekit/baker/config.hpp"
 #include "probekit/formats/result.hpp"
 
 namespace probekit::baker {
@@ -29,6 +29,11 @@ struct SettingInfo {
 // own (bounds corners, resolution, environment radiance and file, volume names) are parsed by
 // hand and are not listed.
 const std::vector<SettingInfo>& bakeSettings();
+
+// Every word a config file may hold: the key of every field of every object (the scalar
+// settings' keys, the sections and the structured values' keys) and every name a setting
+// admits ("auto" included), sorted. tools/fuzz.sh writes the config fuzzer's dictionary from it.
+std::vector<std::string> configVocabulary();
 
 // Checks `text` as a value of the setting at `path`, as its config field would be checked: a
 // number, true/false or a name as written on a command line ("auto" where the setting has an
