@@ -468,16 +468,8 @@ std::string textureFileName(const std::string& stem, const TextureSpec& t) {
     return stem + "-" + t.name + ".png";
 }
 
-// `stem` names the .bin and the texture PNGs written beside the .gltf.
-Json buildGltf(const SceneSpec& s, const std::string& stem, std::vector<uint8_t>& bin) {
-    Json j;
-    j["asset"] = {{"version", "2.0"}, {"generator", "probekit " PROBEKIT_VERSION_STRING}};
-    j["scene"] = 0;
-    j["scenes"] = Json::array({{{"nodes", Json::array()}}});
-    j["nodes"] = Json::array();
-    j["meshes"] = Json::array();
-    j["accessors"] = Json::array();
-    j["bufferViews"] = Json::array();
+// Adds `s`'s materials to `j`; true when one needs KHR_materials_emissive_strength.
+bool addGltfMaterials(const SceneSpec& s, Json& j) {
     j["materials"] = Json::array();
     bool uses_strength = false;
     for (const MaterialSpec& m : s.materials) {
@@ -500,19 +492,29 @@ Json buildGltf(const SceneSpec& s, const std::string& stem, std::vector<uint8_t>
         }
         j["materials"].push_back(jm);
     }
-    if (!s.textures.empty()) {
-        // Linear filtering, repeat wrapping: what Image::sampleBilinear does (scene.hpp).
-        j["samplers"] = Json::array(
-            {{{"magFilter", 9729}, {"minFilter", 9729}, {"wrapS", 10497}, {"wrapT", 10497}}});
-        j["images"] = Json::array();
-        j["textures"] = Json::array();
-        for (size_t t = 0; t < s.textures.size(); ++t) {
-            j["images"].push_back({{"name", s.textures[t].name},
-                                   {"uri", textureFileName(stem, s.textures[t])},
-                                   {"mimeType", "image/png"}});
-            j["textures"].push_back({{"source", t}, {"sampler", 0}});
-        }
+    return uses_strength;
+}
+
+// Adds `s`'s texture images (PNG files named after `stem`), one sampler shared by all.
+void addGltfTextures(const SceneSpec& s, const std::string& stem, Json& j) {
+    if (s.textures.empty()) {
+        return;
     }
+    // Linear filtering, repeat wrapping: what Image::sampleBilinear does (scene.hpp).
+    j["samplers"] = Json::array(
+        {{{"magFilter", 9729}, {"minFilter", 9729}, {"wrapS", 10497}, {"wrapT", 10497}}});
+    j["images"] = Json::array();
+    j["textures"] = Json::array();
+    for (size_t t = 0; t < s.textures.size(); ++t) {
+        j["images"].push_back({{"name", s.textures[t].name},
+                               {"uri", textureFileName(stem, s.textures[t])},
+                               {"mimeType", "image/png"}});
+        j["textures"].push_back({{"source", t}, {"sampler", 0}});
+    }
+}
+
+// Adds one mesh and node per MeshSpec, their arrays appended to `bin`.
+void addGltfMeshes(const SceneSpec& s, Json& j, std::vector<uint8_t>& bin) {
     auto append = [&bin](const void* data, size_t bytes) {
         const size_t offset = bin.size();
         bin.resize(offset + bytes);
@@ -574,41 +576,62 @@ Json buildGltf(const SceneSpec& s, const std::string& stem, std::vector<uint8_t>
         j["scenes"][0]["nodes"].push_back(j["nodes"].size());
         j["nodes"].push_back({{"name", s.materials[mesh.material].name}, {"mesh", mi}});
     }
-    if (!s.lights.empty() || !s.spots.empty() || !s.suns.empty()) {
-        Json lights = Json::array();
-        auto add_light_node = [&j, &lights](Json light, Json node) {
-            node["name"] = "light" + std::to_string(lights.size());
-            node["extensions"]["KHR_lights_punctual"] = {{"light", lights.size()}};
-            lights.push_back(std::move(light));
-            j["scenes"][0]["nodes"].push_back(j["nodes"].size());
-            j["nodes"].push_back(std::move(node));
-        };
-        for (const PointLightSpec& l : s.lights) {
-            add_light_node({{"type", "point"},
-                            {"color", {l.color.x, l.color.y, l.color.z}},
-                            {"intensity", l.intensity}},
-                           {{"translation", {l.position.x, l.position.y, l.position.z}}});
-        }
-        for (const SpotLightSpec& l : s.spots) {
-            const float to_rad = std::numbers::pi_v<float> / 180.0f;
-            add_light_node({{"type", "spot"},
-                            {"color", {l.color.x, l.color.y, l.color.z}},
-                            {"intensity", l.intensity},
-                            {"spot",
-                             {{"innerConeAngle", l.innerConeDeg * to_rad},
-                              {"outerConeAngle", l.outerConeDeg * to_rad}}}},
-                           {{"translation", {l.position.x, l.position.y, l.position.z}},
-                            {"rotation", rotationFromMinusZ(l.direction)}});
-        }
-        for (const DirectionalLightSpec& l : s.suns) {
-            add_light_node({{"type", "directional"},
-                            {"color", {l.color.x, l.color.y, l.color.z}},
-                            {"intensity", l.intensity}},
-                           {{"rotation", rotationFromMinusZ(l.direction)}});
-        }
-        j["extensions"]["KHR_lights_punctual"] = {{"lights", lights}};
-        j["extensionsUsed"].push_back("KHR_lights_punctual");
+}
+
+// Adds the point, spot and directional lights as KHR_lights_punctual nodes.
+void addGltfLights(const SceneSpec& s, Json& j) {
+    if (s.lights.empty() && s.spots.empty() && s.suns.empty()) {
+        return;
     }
+    Json lights = Json::array();
+    auto add_light_node = [&j, &lights](Json light, Json node) {
+        node["name"] = "light" + std::to_string(lights.size());
+        node["extensions"]["KHR_lights_punctual"] = {{"light", lights.size()}};
+        lights.push_back(std::move(light));
+        j["scenes"][0]["nodes"].push_back(j["nodes"].size());
+        j["nodes"].push_back(std::move(node));
+    };
+    for (const PointLightSpec& l : s.lights) {
+        add_light_node({{"type", "point"},
+                        {"color", {l.color.x, l.color.y, l.color.z}},
+                        {"intensity", l.intensity}},
+                       {{"translation", {l.position.x, l.position.y, l.position.z}}});
+    }
+    for (const SpotLightSpec& l : s.spots) {
+        const float to_rad = std::numbers::pi_v<float> / 180.0f;
+        add_light_node({{"type", "spot"},
+                        {"color", {l.color.x, l.color.y, l.color.z}},
+                        {"intensity", l.intensity},
+                        {"spot",
+                         {{"innerConeAngle", l.innerConeDeg * to_rad},
+                          {"outerConeAngle", l.outerConeDeg * to_rad}}}},
+                       {{"translation", {l.position.x, l.position.y, l.position.z}},
+                        {"rotation", rotationFromMinusZ(l.direction)}});
+    }
+    for (const DirectionalLightSpec& l : s.suns) {
+        add_light_node({{"type", "directional"},
+                        {"color", {l.color.x, l.color.y, l.color.z}},
+                        {"intensity", l.intensity}},
+                       {{"rotation", rotationFromMinusZ(l.direction)}});
+    }
+    j["extensions"]["KHR_lights_punctual"] = {{"lights", lights}};
+    j["extensionsUsed"].push_back("KHR_lights_punctual");
+}
+
+// `stem` names the .bin and the texture PNGs written beside the .gltf.
+Json buildGltf(const SceneSpec& s, const std::string& stem, std::vector<uint8_t>& bin) {
+    Json j;
+    j["asset"] = {{"version", "2.0"}, {"generator", "probekit " PROBEKIT_VERSION_STRING}};
+    j["scene"] = 0;
+    j["scenes"] = Json::array({{{"nodes", Json::array()}}});
+    j["nodes"] = Json::array();
+    j["meshes"] = Json::array();
+    j["accessors"] = Json::array();
+    j["bufferViews"] = Json::array();
+    const bool uses_strength = addGltfMaterials(s, j);
+    addGltfTextures(s, stem, j);
+    addGltfMeshes(s, j, bin);
+    addGltfLights(s, j);
     if (uses_strength) {
         j["extensionsUsed"].push_back("KHR_materials_emissive_strength");
     }

@@ -953,6 +953,28 @@ private:
         return values;
     }
 
+    // Bytes charged to the loader's budget while a primitive's work arrays live.
+    struct HeldBytes {
+        MemoryBudget& budget;
+        uint64_t bytes = 0;
+        explicit HeldBytes(MemoryBudget& b) : budget(b) {}
+        void add(uint64_t n) {
+            budget.add(n);
+            bytes += n;
+        }
+        HeldBytes(const HeldBytes&) = delete;
+        HeldBytes& operator=(const HeldBytes&) = delete;
+        ~HeldBytes() { budget.release(bytes); }
+    };
+
+    // A primitive's vertex arrays as read from its accessors (uvs and normals may be empty).
+    struct PrimitiveArrays {
+        std::vector<float> positions;
+        std::vector<float> uvs;
+        std::vector<float> normals;
+        size_t vertexCount() const { return positions.size() / 3; }
+    };
+
     void loadPrimitive(int mesh_index, int primitive_index, const glm::dmat4& world,
                        int32_t scene_node, BoundsBuilder& local_bounds,
                        BoundsBuilder& world_bounds) {
@@ -971,24 +993,11 @@ private:
             warn(field + ": mode " + modeName(mode) + " has no surface; the primitive is skipped");
             return;
         }
-        const auto position_it = primitive.attributes.find("POSITION");
-        if (position_it == primitive.attributes.end()) {
+        if (primitive.attributes.find("POSITION") == primitive.attributes.end()) {
             warn(field + " has no POSITION attribute; the primitive is skipped");
             return;
         }
-
-        uint32_t material_index;
-        if (primitive.material < 0) {
-            material_index = defaultMaterial();
-        } else if (static_cast<size_t>(primitive.material) >= m_model.materials.size()) {
-            fail(ErrorCode::OutOfRange,
-                 field + ".material " + std::to_string(primitive.material) + " is out of range (" +
-                     std::to_string(m_model.materials.size()) + " materials)");
-        } else {
-            // loadMaterials keeps glTF's material order, so the indices coincide.
-            material_index = static_cast<uint32_t>(primitive.material);
-        }
-
+        const uint32_t material_index = primitiveMaterial(primitive, field);
         if (primitive.extensions.count("KHR_draco_mesh_compression")) {
             // gltf_input.cpp has checked that the uncompressed fallback exists.
             warn(field + " is compressed with KHR_draco_mesh_compression, which probekit does not "
@@ -997,29 +1006,52 @@ private:
 
         // Every array below is charged to the budget while it lives (readAccessor checks each
         // before allocating it); the Scene's growth stays charged.
-        struct Held {
-            MemoryBudget& budget;
-            uint64_t bytes = 0;
-            void add(uint64_t n) {
-                budget.add(n);
-                bytes += n;
-            }
-            ~Held() { budget.release(bytes); }
-        } held{m_budget};
-        const std::vector<float> positions = readAccessor<float>(
-            position_it->second, TINYGLTF_TYPE_VEC3, false, field + " POSITION");
-        held.add(positions.size() * sizeof(float));
-        const size_t vertex_count = positions.size() / 3;
-        const std::vector<float> uvs =
-            vertexAttribute(primitive, "TEXCOORD_0", TINYGLTF_TYPE_VEC2, 2, vertex_count, field);
-        held.add(uvs.size() * sizeof(float));
-        // Vertex normals (the renderer's smooth shading; light transport uses face normals).
-        const std::vector<float> normals =
-            vertexAttribute(primitive, "NORMAL", TINYGLTF_TYPE_VEC3, 3, vertex_count, field);
-        held.add(normals.size() * sizeof(float));
-        // Normals transform by the inverse transpose of the node's matrix.
-        const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(glm::dmat3(world)));
+        HeldBytes held{m_budget};
+        const PrimitiveArrays arrays = readPrimitiveArrays(primitive, field, held);
+        const std::vector<uint32_t> indices =
+            primitiveIndices(primitive, arrays.vertexCount(), field);
+        held.add(indices.size() * sizeof(uint32_t));
+        reserveTriangles(mode, indices.size(), arrays.vertexCount(), field, held);
+        const std::vector<glm::uvec3> corners = triangleCorners(mode, indices, field);
+        appendTriangles(arrays, corners, world, material_index, scene_node, field, local_bounds,
+                        world_bounds);
+    }
 
+    // The scene material of a primitive: glTF's index, or the default material when it has none.
+    uint32_t primitiveMaterial(const tinygltf::Primitive& primitive, const std::string& field) {
+        if (primitive.material < 0) {
+            return defaultMaterial();
+        }
+        if (static_cast<size_t>(primitive.material) >= m_model.materials.size()) {
+            fail(ErrorCode::OutOfRange,
+                 field + ".material " + std::to_string(primitive.material) + " is out of range (" +
+                     std::to_string(m_model.materials.size()) + " materials)");
+        }
+        // loadMaterials keeps glTF's material order, so the indices coincide.
+        return static_cast<uint32_t>(primitive.material);
+    }
+
+    // POSITION, TEXCOORD_0 and NORMAL, each charged to `held` once read.
+    PrimitiveArrays readPrimitiveArrays(const tinygltf::Primitive& primitive,
+                                        const std::string& field, HeldBytes& held) {
+        PrimitiveArrays arrays;
+        arrays.positions = readAccessor<float>(primitive.attributes.at("POSITION"),
+                                               TINYGLTF_TYPE_VEC3, false, field + " POSITION");
+        held.add(arrays.positions.size() * sizeof(float));
+        const size_t vertex_count = arrays.vertexCount();
+        arrays.uvs =
+            vertexAttribute(primitive, "TEXCOORD_0", TINYGLTF_TYPE_VEC2, 2, vertex_count, field);
+        held.add(arrays.uvs.size() * sizeof(float));
+        // Vertex normals (the renderer's smooth shading; light transport uses face normals).
+        arrays.normals =
+            vertexAttribute(primitive, "NORMAL", TINYGLTF_TYPE_VEC3, 3, vertex_count, field);
+        held.add(arrays.normals.size() * sizeof(float));
+        return arrays;
+    }
+
+    // The primitive's indices, each checked against the vertex count; 0..n-1 when it has none.
+    std::vector<uint32_t> primitiveIndices(const tinygltf::Primitive& primitive,
+                                           size_t vertex_count, const std::string& field) {
         std::vector<uint32_t> indices;
         if (primitive.indices >= 0) {
             indices = readAccessor<uint32_t>(primitive.indices, TINYGLTF_TYPE_SCALAR, true,
@@ -1032,26 +1064,29 @@ private:
                              ", but POSITION has " + std::to_string(vertex_count) + " vertices");
                 }
             }
-        } else {
-            if (vertex_count > std::numeric_limits<uint32_t>::max()) {
-                fail(ErrorCode::OutOfRange, field + ": too many vertices");
-            }
-            if (!m_budget.fits(vertex_count * sizeof(uint32_t))) {
-                fail(ErrorCode::OutOfRange,
-                     m_budget.refusal(field + " (" + std::to_string(vertex_count) +
-                                          " vertices, listed as indices)",
-                                      vertex_count * sizeof(uint32_t)));
-            }
-            indices.resize(vertex_count);
-            for (size_t i = 0; i < vertex_count; ++i) {
-                indices[i] = static_cast<uint32_t>(i);
-            }
+            return indices;
         }
+        if (vertex_count > std::numeric_limits<uint32_t>::max()) {
+            fail(ErrorCode::OutOfRange, field + ": too many vertices");
+        }
+        if (!m_budget.fits(vertex_count * sizeof(uint32_t))) {
+            fail(ErrorCode::OutOfRange,
+                 m_budget.refusal(field + " (" + std::to_string(vertex_count) +
+                                      " vertices, listed as indices)",
+                                  vertex_count * sizeof(uint32_t)));
+        }
+        indices.resize(vertex_count);
+        for (size_t i = 0; i < vertex_count; ++i) {
+            indices[i] = static_cast<uint32_t>(i);
+        }
+        return indices;
+    }
 
-        held.add(indices.size() * sizeof(uint32_t));
-        // The rest, predicted from the counts: corners and the per-vertex work arrays while they
-        // live, and the Scene's arrays grown for (at most) every vertex and triangle.
-        const size_t n = indices.size();
+    // Charges the rest, predicted from the counts (corners and the per-vertex work arrays while
+    // they live, and the Scene's arrays grown for at most every vertex and triangle), and grows
+    // the Scene; refuses before allocating when it does not fit.
+    void reserveTriangles(int mode, size_t n, size_t vertex_count, const std::string& field,
+                          HeldBytes& held) {
         const uint64_t triangle_count = mode == TINYGLTF_MODE_TRIANGLES ? n / 3 : n < 2 ? 0 : n - 2;
         const uint64_t work = triangle_count * sizeof(glm::uvec3) +
                               vertex_count * (sizeof(glm::vec3) + sizeof(uint32_t)) +
@@ -1066,11 +1101,15 @@ private:
         }
         held.add(work);
         growScene(vertex_count, triangle_count);
+    }
 
-        // Triangle corners, following the glTF 2.0 specification's definitions of strips
-        // (odd triangles swap their first two corners to keep the winding) and fans.
+    // Triangle corners, following the glTF 2.0 specification's definitions of strips (odd
+    // triangles swap their first two corners to keep the winding) and fans.
+    std::vector<glm::uvec3> triangleCorners(int mode, const std::vector<uint32_t>& indices,
+                                            const std::string& field) {
+        const size_t n = indices.size();
         std::vector<glm::uvec3> corners;
-        corners.reserve(triangle_count);
+        corners.reserve(mode == TINYGLTF_MODE_TRIANGLES ? n / 3 : n < 2 ? 0 : n - 2);
         if (mode == TINYGLTF_MODE_TRIANGLES) {
             if (n % 3 != 0) {
                 warn(field + ": " + std::to_string(n) +
@@ -1091,9 +1130,21 @@ private:
                 corners.emplace_back(indices[i], indices[i + 1], indices[0]);
             }
         }
+        return corners;
+    }
 
-        // Transform every vertex once; remap to scene vertices only those used by a kept
-        // triangle, so no non-finite or unused vertex reaches the Scene.
+    // Adds the triangles to the Scene. Every vertex is transformed once; only those used by a
+    // kept triangle are remapped to scene vertices, so no non-finite or unused vertex reaches it.
+    void appendTriangles(const PrimitiveArrays& arrays, const std::vector<glm::uvec3>& corners,
+                         const glm::dmat4& world, uint32_t material_index, int32_t scene_node,
+                         const std::string& field, BoundsBuilder& local_bounds,
+                         BoundsBuilder& world_bounds) {
+        const std::vector<float>& positions = arrays.positions;
+        const std::vector<float>& uvs = arrays.uvs;
+        const std::vector<float>& normals = arrays.normals;
+        const size_t vertex_count = arrays.vertexCount();
+        // Normals transform by the inverse transpose of the node's matrix.
+        const glm::dmat3 normal_matrix = glm::transpose(glm::inverse(glm::dmat3(world)));
         std::vector<glm::vec3> world_positions(vertex_count);
         std::vector<bool> finite(vertex_count);
         for (size_t v = 0; v < vertex_count; ++v) {

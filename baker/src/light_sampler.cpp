@@ -21,9 +21,39 @@ uint32_t invertCdf(const T* cdf, uint32_t count, double u) {
     return std::min(index, count - 1);
 }
 
+// The texels' luminance, each the average of the bilinear reconstruction over its pixel along the
+// row, with the repeat wrapping that Image::sampleBilinear uses: the filter (1/8, 3/4, 1/8).
+constexpr double kSide = 0.125;
+constexpr double kCentre = 0.75;
+
+std::vector<double> rowFilteredLuminance(const Image& image) {
+    const uint32_t w = image.width;
+    const uint32_t h = image.height;
+    std::vector<double> texel_luminance(size_t(w) * h);
+    for (size_t i = 0; i < texel_luminance.size(); ++i) {
+        texel_luminance[i] = std::max(0.0, luminance(glm::vec3(image.texels[i])));
+    }
+    std::vector<double> rows_filtered(texel_luminance.size());
+    for (uint32_t y = 0; y < h; ++y) {
+        for (uint32_t x = 0; x < w; ++x) {
+            const uint32_t left = (x + w - 1) % w;
+            const uint32_t right = (x + 1) % w;
+            const double* row = &texel_luminance[size_t(y) * w];
+            rows_filtered[size_t(y) * w + x] =
+                kSide * row[left] + kCentre * row[x] + kSide * row[right];
+        }
+    }
+    return rows_filtered;
+}
+
 } // namespace
 
 LightSampler::LightSampler(const Scene& scene) {
+    buildEmitterTable(scene);
+    buildEnvironmentTables(scene.environment);
+}
+
+void LightSampler::buildEmitterTable(const Scene& scene) {
     // Emissive triangles, weighted by area x luminance of the emission factor.
     std::vector<double> weights;
     for (uint32_t tri = 0; tri < uint32_t(scene.triangles.size()); ++tri) {
@@ -61,34 +91,18 @@ LightSampler::LightSampler(const Scene& scene) {
             m_pdfArea[e.triangle] = float((m_emitterCdf[i + 1] - m_emitterCdf[i]) / area);
         }
     }
+}
 
+void LightSampler::buildEnvironmentTables(const Environment& env) {
     // Lat-long environment: piecewise-constant over pixels (see the header for the weights).
-    const Environment& env = scene.environment;
     if (env.type != Environment::Type::LatLong || env.isBlack() || env.image.width == 0 ||
         env.image.height == 0) {
         return;
     }
     const uint32_t w = env.image.width;
     const uint32_t h = env.image.height;
-    const std::vector<glm::vec4>& texels = env.image.texels;
-    std::vector<double> texel_luminance(size_t(w) * h);
-    for (size_t i = 0; i < texel_luminance.size(); ++i) {
-        texel_luminance[i] = std::max(0.0, luminance(glm::vec3(texels[i])));
-    }
-    // Average of the bilinear reconstruction over a pixel, with the repeat wrapping that
-    // Image::sampleBilinear uses: the separable filter (1/8, 3/4, 1/8).
-    constexpr double kSide = 0.125;
-    constexpr double kCentre = 0.75;
-    std::vector<double> rows_filtered(texel_luminance.size());
-    for (uint32_t y = 0; y < h; ++y) {
-        for (uint32_t x = 0; x < w; ++x) {
-            const uint32_t left = (x + w - 1) % w;
-            const uint32_t right = (x + 1) % w;
-            const double* row = &texel_luminance[size_t(y) * w];
-            rows_filtered[size_t(y) * w + x] =
-                kSide * row[left] + kCentre * row[x] + kSide * row[right];
-        }
-    }
+    // Then along columns below: the separable average over each pixel.
+    const std::vector<double> rows_filtered = rowFilteredLuminance(env.image);
     m_edgeCos.resize(h + 1);
     for (uint32_t y = 0; y <= h; ++y) {
         m_edgeCos[y] = std::cos(std::numbers::pi * double(y) / double(h));

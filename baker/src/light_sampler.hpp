@@ -61,6 +61,11 @@ public:
     float environmentPdf(glm::vec3 dir) const;
 
 private:
+    // The emitter table: emissive triangles weighted by area x luminance, and each one's pdf.
+    void buildEmitterTable(const Scene& scene);
+    // The environment's row and column CDFs; leaves them empty for a black or constant sky.
+    void buildEnvironmentTables(const Environment& env);
+
     // Emitters: their geometry (kept together for cache locality when sampling), CDF over them
     // (size + 1 entries, last exactly 1), and a dense per-triangle area pdf (empty when the
     // scene has no emitter).

@@ -200,27 +200,33 @@ uint64_t brickedWorkingBytes(const BakeConfig& config, uint64_t other_bytes) {
     return std::max(room, kMinWorkingBytes);
 }
 
-MemoryPrediction predictBakeMemory(const MemoryInputs& in) {
-    const Scene& scene = in.scene;
-    const BakeConfig& config = in.config;
-    const uint64_t triangles = scene.triangles.size();
-    const uint64_t vertices = scene.positions.size();
+namespace {
 
-    // Held in every phase.
-    const MemoryTerm process{"the process's libraries and other data", "", in.processBytes, false,
-                             true};
-    const MemoryTerm scene_term{"the scene's arrays (" + count(triangles) + " triangles, " +
-                                    count(scene.images.size()) + " images)",
-                                "", sceneBytes(scene)};
-    const MemoryTerm threads{count(in.threads) + " threads' scratch buffers", "lower --threads",
-                             in.threads * kThreadBytes};
-    // RayTracer's own vertices (one padding), indices (one padding) and normals.
-    const MemoryTerm tracer{
-        "the BVH and the tracer's arrays over " + count(triangles) + " triangles", "",
-        (vertices + 1) * sizeof(glm::vec3) + (triangles + 1) * sizeof(glm::uvec3) +
-            triangles * (sizeof(glm::vec3) + kBvhBytesPerTriangle)};
-    const auto phase = [&](std::string name, std::vector<MemoryTerm> terms, bool traced) {
-        MemoryPhase p{std::move(name), {process, scene_term}};
+// Builds the phases of a prediction: every phase holds the process and the scene; a traced phase
+// also holds the tracer and the threads' scratch buffers.
+struct PhaseBuilder {
+    MemoryTerm process;
+    MemoryTerm scene;
+    MemoryTerm tracer;
+    MemoryTerm threads;
+
+    explicit PhaseBuilder(const MemoryInputs& in) {
+        const uint64_t triangles = in.scene.triangles.size();
+        const uint64_t vertices = in.scene.positions.size();
+        process = {"the process's libraries and other data", "", in.processBytes, false, true};
+        scene = {"the scene's arrays (" + count(triangles) + " triangles, " +
+                     count(in.scene.images.size()) + " images)",
+                 "", sceneBytes(in.scene)};
+        threads = {count(in.threads) + " threads' scratch buffers", "lower --threads",
+                   in.threads * kThreadBytes};
+        // RayTracer's own vertices (one padding), indices (one padding) and normals.
+        tracer = {"the BVH and the tracer's arrays over " + count(triangles) + " triangles", "",
+                  (vertices + 1) * sizeof(glm::vec3) + (triangles + 1) * sizeof(glm::uvec3) +
+                      triangles * (sizeof(glm::vec3) + kBvhBytesPerTriangle)};
+    }
+
+    MemoryPhase phase(std::string name, std::vector<MemoryTerm> terms, bool traced) const {
+        MemoryPhase p{std::move(name), {process, scene}};
         if (traced) {
             p.terms.push_back(tracer);
             p.terms.push_back(threads);
@@ -231,26 +237,31 @@ MemoryPrediction predictBakeMemory(const MemoryInputs& in) {
             }
         }
         return p;
-    };
+    }
+};
 
-    MemoryPrediction out;
-    MemoryTerm build_term = tracer;
-    build_term.what = "the BVH build over " + count(triangles) + " triangles";
-    build_term.bytes += triangles * (kBvhBuildBytesPerTriangle - kBvhBytesPerTriangle);
-    out.phases.push_back(phase("building the BVH", {build_term}, false));
-
-    // What the method keeps for every volume, and a light sampler per path integrator.
-    MemoryTerm method;
+// What the method keeps for every volume, and how many light samplers it holds.
+struct MethodMemory {
+    MemoryTerm held;
     uint64_t samplers = 1;
+};
+
+// The method's own phase (tracing the VPLs, injecting the LPV lights), added to `out`, and what
+// it keeps while the volumes bake.
+MethodMemory addMethodPhase(const MemoryInputs& in, const PhaseBuilder& phases,
+                            MemoryPrediction& out) {
+    const BakeConfig& config = in.config;
+    MethodMemory method;
     if (config.method == Method::Vpl) {
         const uint64_t n = in.vplCount;
-        out.phases.push_back(phase("tracing the VPLs",
-                                   {{"vpl.count " + count(n) + " VPLs and their light tree",
-                                     "lower --vpl-count", VplGatherer::buildBytes(n)}},
-                                   true));
-        method = {"vpl.count " + count(n) + " VPLs and their light tree", "lower --vpl-count",
-                  VplGatherer::heldBytes(n)};
-        samplers = 3; // the probe's path integrator, and the VPL integrator's direct and near
+        out.phases.push_back(phases.phase("tracing the VPLs",
+                                          {{"vpl.count " + count(n) + " VPLs and their light tree",
+                                            "lower --vpl-count", VplGatherer::buildBytes(n)}},
+                                          true));
+        method.held = {"vpl.count " + count(n) + " VPLs and their light tree", "lower --vpl-count",
+                       VplGatherer::heldBytes(n)};
+        method.samplers =
+            3; // the probe's path integrator, and the VPL integrator's direct and near
     }
     if (config.method == Method::Lpv) {
         uint64_t lights = config.lpv.vplCount;
@@ -263,64 +274,95 @@ MemoryPrediction predictBakeMemory(const MemoryInputs& in) {
         // prepareLpvLights: the VPL set while its lights are injected and their escape rays
         // traced.
         out.phases.push_back(
-            phase("injecting the LPV lights",
-                  {{"lpv.vpl_count " + count(config.lpv.vplCount) + " injected lights",
-                    "lower --lpv-vpl-count",
-                    uint64_t(config.lpv.vplCount) * sizeof(Vpl) + lights * kInjected}},
-                  true));
-        method = {"lpv.vpl_count " + count(config.lpv.vplCount) + " injected lights",
-                  "lower --lpv-vpl-count", lights * kInjected};
+            phases.phase("injecting the LPV lights",
+                         {{"lpv.vpl_count " + count(config.lpv.vplCount) + " injected lights",
+                           "lower --lpv-vpl-count",
+                           uint64_t(config.lpv.vplCount) * sizeof(Vpl) + lights * kInjected}},
+                         true));
+        method.held = {"lpv.vpl_count " + count(config.lpv.vplCount) + " injected lights",
+                       "lower --lpv-vpl-count", lights * kInjected};
     }
-    const MemoryTerm sampler{"light sampling tables", "", samplers * lightSamplerBytes(scene)};
+    return method;
+}
 
-    MemoryTerm done{"the volumes baked before", "", 0};
+// Adds volume `i`'s probe terms to its probe phase; `done` grows by what the volume keeps.
+void addProbeTerms(const MemoryInputs& in, size_t i, MemoryPhase& probes, MemoryTerm& done,
+                   MemoryPrediction& out) {
+    const BakeConfig& config = in.config;
+    const VolumeDesc& v = in.volumes[i];
+    const std::string name = volumeName(i, v);
+    if (v.layout == VolumeLayout::Bricked) {
+        const uint64_t level0 = latticeProbes(v, 0);
+        const uint64_t working = brickedWorkingBytes(config, probes.ownBytes());
+        const uint64_t every = latticeProbes(v, v.bricks.maxLevel);
+        const uint64_t bound = std::min(every, std::max(level0, working / kBakedProbeBytes));
+        probes.terms.push_back({name + ": " + count(level0) + " level-0 lattice probes",
+                                "lower the density or resolution", level0 * kBakedProbeBytes,
+                                false});
+        probes.terms.push_back({name + ": refinement's probes (at most)", "",
+                                (bound - level0) * kBakedProbeBytes, true});
+        out.refinementBoundBytes += probes.terms.back().bytes;
+        out.brickedWorkingBytes.push_back(working);
+        // What the volume keeps: its level-0 bricks' probes at least.
+        done.bytes += uint64_t(brick::kBrickProbeCount) * v.grid.probeCount() *
+                      outputBytesPerProbe(v, config.visibility);
+    } else {
+        const uint64_t n = v.grid.probeCount();
+        probes.terms.push_back({name + ": " + count(n) + " probes",
+                                "lower the resolution or density",
+                                n * denseWorkingBytesPerProbe(v, config.visibility), false});
+        out.brickedWorkingBytes.push_back(0);
+        done.bytes += n * outputBytesPerProbe(v, config.visibility);
+    }
+}
+
+// Each volume's phases (its LPV cascades, then its probes), in bake order; `done` ends holding
+// every volume's output.
+void addVolumePhases(const MemoryInputs& in, const PhaseBuilder& phases, const MethodMemory& method,
+                     MemoryTerm& done, MemoryPrediction& out) {
+    const BakeConfig& config = in.config;
+    const MemoryTerm sampler{"light sampling tables", "",
+                             method.samplers * lightSamplerBytes(in.scene)};
     for (size_t i = 0; i < in.volumes.size(); ++i) {
         const VolumeDesc& v = in.volumes[i];
-        const std::string name = volumeName(i, v);
         const std::string label = "volumes[" + std::to_string(i) + "]";
         MemoryTerm cascades;
         if (config.method == Method::Lpv) {
-            const LpvVolumeBytes lpv = lpvVolumeBytes(scene, config.lpv, v);
+            const LpvVolumeBytes lpv = lpvVolumeBytes(in.scene, config.lpv, v);
             const std::string what = count(lpv.cells) + " cells of lpv.grid " +
                                      count(config.lpv.grid) + " x lpv.cascades " +
                                      count(config.lpv.cascades);
             const std::string advice = "lower --lpv-grid or --lpv-cascades";
-            out.phases.push_back(phase("propagating " + label + "'s cascades",
-                                       {method, done, {what, advice, lpv.peak}}, true));
+            out.phases.push_back(phases.phase("propagating " + label + "'s cascades",
+                                              {method.held, done, {what, advice, lpv.peak}}, true));
             cascades = {what, advice, lpv.kept};
         }
-        MemoryPhase probes =
-            phase("baking " + label + "'s probes", {method, done, cascades, sampler}, true);
-        if (v.layout == VolumeLayout::Bricked) {
-            const uint64_t level0 = latticeProbes(v, 0);
-            const uint64_t working = brickedWorkingBytes(config, probes.ownBytes());
-            const uint64_t every = latticeProbes(v, v.bricks.maxLevel);
-            const uint64_t bound = std::min(every, std::max(level0, working / kBakedProbeBytes));
-            probes.terms.push_back({name + ": " + count(level0) + " level-0 lattice probes",
-                                    "lower the density or resolution", level0 * kBakedProbeBytes,
-                                    false});
-            probes.terms.push_back({name + ": refinement's probes (at most)", "",
-                                    (bound - level0) * kBakedProbeBytes, true});
-            out.refinementBoundBytes += probes.terms.back().bytes;
-            out.brickedWorkingBytes.push_back(working);
-            // What the volume keeps: its level-0 bricks' probes at least.
-            done.bytes += uint64_t(brick::kBrickProbeCount) * v.grid.probeCount() *
-                          outputBytesPerProbe(v, config.visibility);
-        } else {
-            const uint64_t n = v.grid.probeCount();
-            probes.terms.push_back({name + ": " + count(n) + " probes",
-                                    "lower the resolution or density",
-                                    n * denseWorkingBytesPerProbe(v, config.visibility), false});
-            out.brickedWorkingBytes.push_back(0);
-            done.bytes += n * outputBytesPerProbe(v, config.visibility);
-        }
+        MemoryPhase probes = phases.phase("baking " + label + "'s probes",
+                                          {method.held, done, cascades, sampler}, true);
+        addProbeTerms(in, i, probes, done, out);
         out.phases.push_back(std::move(probes));
     }
+}
+
+} // namespace
+
+MemoryPrediction predictBakeMemory(const MemoryInputs& in) {
+    const PhaseBuilder phases(in);
+    MemoryPrediction out;
+    MemoryTerm build_term = phases.tracer;
+    const uint64_t triangles = in.scene.triangles.size();
+    build_term.what = "the BVH build over " + count(triangles) + " triangles";
+    build_term.bytes += triangles * (kBvhBuildBytesPerTriangle - kBvhBytesPerTriangle);
+    out.phases.push_back(phases.phase("building the BVH", {build_term}, false));
+
+    const MethodMemory method = addMethodPhase(in, phases, out);
+    MemoryTerm done{"the volumes baked before", "", 0};
+    addVolumePhases(in, phases, method, done, out);
     // probekit bake encodes the file after bake() has freed the tracer and the method.
     MemoryTerm encoded = done;
     encoded.what = "the encoded file's bytes";
     done.what = "the baked volumes";
-    out.phases.push_back(phase("writing the file", {done, encoded}, false));
+    out.phases.push_back(phases.phase("writing the file", {done, encoded}, false));
 
     for (size_t i = 0; i < out.phases.size(); ++i) {
         const uint64_t bytes = out.phases[i].bytes();

@@ -124,49 +124,51 @@ estimateError(const std::function<glm::vec3(glm::vec3 point, glm::vec3 normal)>&
     return e;
 }
 
-Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, double target,
-                                    uint32_t threads) {
-    if (!(target > 0.0) || !(target < 1.0)) {
-        return makeError(ErrorCode::InvalidArgument,
-                         "target_error: " + std::to_string(target) + " is not in (0, 1)");
+namespace {
+
+// Every volume becomes bricked, centre-placed, refinable to the deepest level, its level-0
+// resolution left to the density rule (resolved by the caller).
+void makeVolumesRefinable(BakeConfig& config) {
+    if (config.volumes.empty()) {
+        config.volumes.push_back(VolumeConfig{});
     }
-    const auto start = std::chrono::steady_clock::now();
-    TargetChoice choice;
-    choice.target = target;
-    choice.config = base;
-    if (choice.config.volumes.empty()) {
-        choice.config.volumes.push_back(VolumeConfig{});
-    }
-    for (VolumeConfig& v : choice.config.volumes) {
+    for (VolumeConfig& v : config.volumes) {
         v.layout = VolumeLayout::Bricked;
         v.position = grid::PositionMode::Center;
         v.maxLevel = brick::kMaxLevel;
         v.resolution.reset(); // level 0 from the density rule
     }
-    Result<std::vector<VolumeDesc>> descs = resolveVolumes(scene, choice.config);
-    if (!descs) {
-        return descs.error();
-    }
-    // Level 0 covers the smooth light, where trilinear error grows with the square of the
-    // spacing: its spacing scales with sqrt(target / kDensityTarget) from the density rule's
-    // (which suits kDensityTarget); refinement adds the detail.
+}
+
+// Level 0 covers the smooth light, where trilinear error grows with the square of the spacing:
+// its spacing scales with sqrt(target / kDensityTarget) from the density rule's (which suits
+// kDensityTarget); refinement adds the detail.
+void chooseLevel0Resolution(const std::vector<VolumeDesc>& descs, double target,
+                            BakeConfig& config) {
     constexpr double kDensityTarget = 0.05;
     const double spacing_scale = std::sqrt(target / kDensityTarget);
-    for (size_t i = 0; i < descs.value().size(); ++i) {
-        const glm::uvec3 top = descs.value()[i].grid.resolution();
+    for (size_t i = 0; i < descs.size(); ++i) {
+        const glm::uvec3 top = descs[i].grid.resolution();
         glm::uvec3 chosen;
         for (int a = 0; a < 3; ++a) {
             const double bricks = double(top[a]) / spacing_scale;
             chosen[a] = std::clamp(1u << uint32_t(std::max(0L, std::lround(std::log2(bricks)))), 1u,
                                    grid::kMaxResolution);
         }
-        choice.config.volumes[i].resolution = chosen;
+        config.volumes[i].resolution = chosen;
     }
+}
 
-    // Pilot: two independent estimates at 64 points.
+constexpr uint32_t kPilotSamples = 256;
+
+// Pilot: two independent estimates at 64 points give the noise of one estimate and band 2's
+// share of the irradiance (choice.pilotNoise, band2, pilotPoints); returns the pilot's squared
+// reference irradiance summed over its valid points.
+Result<double> runPilot(const Scene& scene, const BakeConfig& base,
+                        const std::vector<VolumeDesc>& descs, uint32_t threads,
+                        TargetChoice& choice) {
     constexpr size_t kPilotPoints = 64;
-    constexpr uint32_t kPilotSamples = 256;
-    const std::vector<glm::vec3> points = volumeSamplePoints(descs.value(), kPilotPoints);
+    const std::vector<glm::vec3> points = volumeSamplePoints(descs, kPilotPoints);
     Result<PointBake> a = bakePoints(scene, base, points, kPilotSamples, 11, threads);
     if (!a) {
         return a.error();
@@ -199,7 +201,12 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
     // Band 2's own share, less the noise it carries (band 2 is 5 of the 9 coefficients).
     choice.band2 = std::sqrt(std::max(
         0.0, band2 / reference2 - 5.0 / 9.0 * 0.5 * choice.pilotNoise * choice.pilotNoise));
+    return reference2;
+}
 
+// Splits the target between noise, SH order and interpolation from the pilot's figures, and
+// writes the resulting settings into choice.config.
+void allocateErrorBudget(Method method, double target, double reference2, TargetChoice& choice) {
     const double noise_budget = kTargetNoiseShare * target;
     choice.shOrder = choice.band2 < kTargetBand2Share * target ? sh::Order::L1 : sh::Order::L2;
     const double sh_error = choice.shOrder == sh::Order::L1 ? choice.band2 : 0.0;
@@ -228,9 +235,9 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
     choice.noiseFloor = std::sqrt(reference2 / (double(choice.pilotPoints) * 18.0));
     choice.config.path.noiseFloor = float(choice.noiseFloor);
     choice.config.path.maxSamples = kTargetMaxSamples;
-    if (base.method == Method::Path) {
+    if (method == Method::Path) {
         choice.config.path.samples = choice.minSamples;
-    } else if (base.method == Method::Vpl) {
+    } else if (method == Method::Vpl) {
         choice.config.vpl.directSamples = choice.minSamples;
     } else {
         choice.config.lpv.directSamples = choice.minSamples;
@@ -239,6 +246,31 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
         v.shOrder = choice.shOrder;
         v.refineError = float(choice.interpolationBudget);
     }
+}
+
+} // namespace
+
+Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, double target,
+                                    uint32_t threads) {
+    if (!(target > 0.0) || !(target < 1.0)) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "target_error: " + std::to_string(target) + " is not in (0, 1)");
+    }
+    const auto start = std::chrono::steady_clock::now();
+    TargetChoice choice;
+    choice.target = target;
+    choice.config = base;
+    makeVolumesRefinable(choice.config);
+    Result<std::vector<VolumeDesc>> descs = resolveVolumes(scene, choice.config);
+    if (!descs) {
+        return descs.error();
+    }
+    chooseLevel0Resolution(descs.value(), target, choice.config);
+    Result<double> reference2 = runPilot(scene, base, descs.value(), threads, choice);
+    if (!reference2) {
+        return reference2.error();
+    }
+    allocateErrorBudget(base.method, target, reference2.value(), choice);
     choice.pilotSeconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return choice;
