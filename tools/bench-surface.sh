@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Per-pixel surface accuracy of the bundled scenes (README, "Surface accuracy"): for each view, a
-# path-traced surface reference (probekit surface-reference), then the volume of each bake
+# Per-pixel surface accuracy of the bundled scenes (docs/accuracy.md#surface-accuracy): for each
+# view, a path-traced surface reference (probekit surface-reference), then the volume of each bake
 # sampled at its pixels by the CPU sampler (probekit surface-error --volume), as a markdown
 # table. "before" bakes with relocation and deringing off (validity.relocate, dering) and, on
 # the Cornell box, the bundled example's former config; "after" with the defaults and today's

@@ -8,8 +8,9 @@ set -euo pipefail
 # absent, and libopenimageio-dev does not depend on that package.
 # clang-14 and libclang-rt-14-dev: the libFuzzer targets (tools/fuzz.sh) need clang and its
 # fuzzer and sanitizer runtimes; the build and the tests use g++.
-# libopenmpi-dev and openmpi-bin: distributed bakes (mpirun -np N probekit bake, README
-# "Distributed bakes") and their test; optional to the build, which leaves MPI out without them.
+# libopenmpi-dev and openmpi-bin: distributed bakes (mpirun -np N probekit bake,
+# docs/baking.md#distributed-bakes) and their test; optional to the build, which leaves MPI out
+# without them.
 
 packages=(
     build-essential cmake ninja-build pkg-config git clang-format

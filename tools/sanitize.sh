@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Debug build with AddressSanitizer and UndefinedBehaviorSanitizer (every assert live, any
 # undefined behaviour fatal) into ./build-asan, then the unit and bake suites under it. .ci/run
-# runs this after the README's test command. Measured on the project's 2-core machine: about
-# 5 minutes to build and 9 to test.
+# runs this after the Quick start's test command
+# (README.md#quick-start-fresh-debian-12-as-root-from-the-repository-root). Measured on the
+# project's 2-core machine: about 5 minutes to build and 9 to test.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 flags="-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined"

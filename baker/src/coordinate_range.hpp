@@ -1,4 +1,4 @@
-// The coordinates a bake accepts (README, "Scenes": coordinate range).
+// The coordinates a bake accepts (docs/baking.md#scenes: coordinate range).
 //
 // Everything the baker traces is float32, and a ray leaving a surface starts
 // RayTracer::offsetOrigin's 256 ulps of each coordinate away from it. At |x| = 1e7 m an ulp is

@@ -3,7 +3,7 @@
 // Dense volumes are deringed after dilation; bricked volumes before their borders are
 // stitched (stitched probes are then interpolations, with non-negative weights, of deringed
 // ones, and keep the guarantee but for rounding) and again after, so the coefficients as
-// stored always pass. README, "Deringing".
+// stored always pass. docs/baking.md#deringing.
 #pragma once
 
 #include <cstdint>

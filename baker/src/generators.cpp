@@ -39,7 +39,8 @@ struct TextureSpec {
 };
 
 // Counter-clockwise seen from outside everywhere: the baker's validity test counts back-face
-// hits to find probes inside solids (README, validity), so the winding says which side is out.
+// hits to find probes inside solids (docs/baking.md#config: validity), so the winding says which
+// side is out.
 struct MeshSpec {
     int material = 0;
     std::vector<glm::vec3> positions;

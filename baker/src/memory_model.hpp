@@ -1,6 +1,6 @@
 // The memory model of a bake: its peak resident bytes, predicted before anything big is
 // allocated, so that bake() refuses a bake above max_memory_mb with the terms that make it
-// big instead of running out of memory halfway (README, max_memory_mb).
+// big instead of running out of memory halfway (docs/baking.md#memory-max_memory_mb).
 //
 // The bake runs in phases, and what one phase allocates is freed before the next, except what
 // it hands on; the peak is the largest phase:

@@ -58,7 +58,8 @@ SceneSummary summarizeScene(const Scene& scene) {
         const glm::vec3 p0 = scene.positions[tri.x];
         const double area = 0.5 * double(glm::length(glm::cross(scene.positions[tri.y] - p0,
                                                                 scene.positions[tri.z] - p0)));
-        // Two-sided Lambertian emitter: pi L per side and unit area (README, VPL method).
+        // Two-sided Lambertian emitter: pi L per side and unit area
+        // (docs/baking.md#the-vpl-method---method-vpl).
         const glm::vec3 radiance = scene.emissionAt(uint32_t(t), glm::vec2(1.0f / 3.0f));
         ++s.emitters.triangles;
         s.emitters.area += area;

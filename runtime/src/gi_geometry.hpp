@@ -1,4 +1,4 @@
-// probekit::runtime — the dynamic GI's geometry volume, CPU twin (README.md, "Dynamic GI").
+// probekit::runtime — the dynamic GI's geometry volume, CPU twin (docs/runtime.md#dynamic-gi).
 //
 // A cascade is a cube of `cells` cells of side `cellSize` from `origin`. Its geometry volume is
 // offset by half a cell, as the offline LPV's (baker/src/lpv.hpp, "Geometry volume"): cells + 1

@@ -237,7 +237,7 @@ private:
 
 } // namespace
 
-// Every batch of probes goes through BakeOptions::distributor (README, "Distributed bakes"):
+// Every batch of probes goes through BakeOptions::distributor (docs/baking.md#distributed-bakes):
 // chunks in any order on any process give the same bytes and the same statistics as one
 // process, for a dense and a bricked volume (whose refinement bakes level by level) and the
 // vpl method.

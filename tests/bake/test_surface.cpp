@@ -1,4 +1,4 @@
-// Surface accuracy (README, "Surface accuracy"): the per-pixel reference
+// Surface accuracy (docs/accuracy.md#surface-accuracy): the per-pixel reference
 // (baker/include/probekit/baker/surface_reference.hpp) against analytic answers, and volumes
 // against that reference per pixel (runtime/include/probekit/runtime/surface_error.hpp) on the
 // generated scenes: a face whose nearest probes sit inside a solid, a small emitter whose L2
@@ -116,13 +116,15 @@ runtime::Camera lookingDown(float height) {
     return c;
 }
 
-// The bundled Cornell box seen from its open side, as the README's example image.
+// The bundled Cornell box seen from its open side, as the README's example image
+// (README.md#a-first-bake).
 runtime::Camera cornellFront(const Scene& scene, float aspect) {
     return runtime::frameBounds(scene.bounds, 40.0f, aspect, glm::vec3(0.0f, 0.0f, -1.0f));
 }
 
 // A close view of the short block's front face (turned 17 degrees from -z): every pixel is the
-// face, whose nearest lattice points in the README example's 8^3 volume lie inside the block.
+// face, whose nearest lattice points in the bundled example's former 8^3 volume lie inside the
+// block.
 runtime::Camera shortBlockFace() {
     runtime::Camera c;
     c.eye = glm::vec3(0.26f, 0.09f, -0.08f);
@@ -209,7 +211,7 @@ TEST(SurfaceReference, DeterministicAndItsStandardErrorCoversTheSeedSpread) {
 }
 
 // A face whose nearest lattice points lie inside the solid it bounds: the short block's front
-// face against an 8^3 grid (the README example's former). Hidden, those probes leave the face to
+// face against an 8^3 grid (the example's former). Hidden, those probes leave the face to
 // the dark probes of the box's opening; relocated out of the block they light it. Measured
 // (1024-sample probes, 2048-sample reference, deringing on): mean ratio 0.74 relocated (half a
 // cell in front of the face), 0.58 hidden (0.21 before deringing). The mean over 768 pixels carries
@@ -234,7 +236,7 @@ TEST(SurfaceAccuracy, AFaceBesideProbesInsideASolidIsLitByRelocatedProbes) {
     EXPECT_GT(relocated.meanRatio - hidden.meanRatio, 0.1);
 }
 
-// No negative light anywhere (deringing, README "Surface accuracy"): every surface pixel of the
+// No negative light anywhere (deringing, docs/baking.md#deringing): every surface pixel of the
 // Cornell box's front view under its small emitter, for L2 and L1, half and float, gets E >= 0
 // from the CPU sampler (which the GPU shader mirrors term for term); without deringing the same
 // bakes light some pixels negative, so the test can fail.

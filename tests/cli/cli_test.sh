@@ -231,8 +231,8 @@ expect 1 "cornell.gltf: node 0 \('white'\), triangle 0: vertex \(0, 0, 5.592e\+1
     "$pk" bake cornell.gltf -o far.pvol --scale 1e20
 check "no output after a refused scale" test ! -e far.pvol
 
-# The memory model (README, Memory): too big a bake is refused before it allocates, naming the
-# largest term; max_memory_mb's bytes cannot overflow.
+# The memory model (docs/baking.md#memory-max_memory_mb): too big a bake is refused before it
+# allocates, naming the largest term; max_memory_mb's bytes cannot overflow.
 expect 1 "predicted peak memory [0-9.]+ GiB \(tracing the VPLs\) exceeds max_memory_mb = 4096: vpl.count 16777216 VPLs and their light tree need 5.7 GiB \(lower --vpl-count, or raise --max-memory\)" -- \
     "$pk" bake cornell.gltf -o mem1.pvol --method vpl --vpl-count 16777216
 expect 1 "65802240 cells of lpv.grid 256 x lpv.cascades 4 need 8.1 GiB" -- \

@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
-# Distributed bakes end to end (README, "Distributed bakes"): `mpirun -np N probekit bake` writes
-# the same bytes as one process for every method, layout and setting that bakes probes in
+# Distributed bakes end to end (docs/baking.md#distributed-bakes): `mpirun -np N probekit bake`
+# writes the same bytes as one process for every method, layout and setting that bakes probes in
 # batches (dense, bricked with its level-by-level refinement, --target-error, adaptive sampling,
-# vpl, lpv), for 2 and 3 ranks and 1 and 2 threads; and a rank killed mid-bake ends the job with
-# an error and leaves no file. Usage: mpi_test.sh PROBEKIT WORKDIR MPIRUN
+# vpl, lpv), for 2 and 3 ranks and 1 and 2 threads; and a rank killed mid-bake ends the job with an
+# error and leaves no file. Usage: mpi_test.sh PROBEKIT WORKDIR MPIRUN
 set -u
 pk=$1
 work=$2

@@ -125,7 +125,7 @@ mkdir locked && chmod 500 locked
 if [[ ! -w locked ]]; then # root can write anyway; the check only means something otherwise
     expect 1 "locked/x.png" -- "$pk" render cornell.gltf volume.pvol -o locked/x.png --size 8,8
 fi
-# The output rule of every command (README, "Files probekit reads and writes"): a FIFO is
+# The output rule of every command (docs/commands.md#files-probekit-reads-and-writes): a FIFO is
 # refused before any rendering, a link is followed and stays a link, and both formats are
 # written through the same atomic writer.
 mkfifo fifo.png

@@ -497,7 +497,7 @@ Result<baker::BakeResult> bakeWithProgress(const BakeOptionsCli& o, const baker:
     return result;
 }
 
-// The distributed bake's line and report fields (rank 0; README, "Distributed bakes").
+// The distributed bake's line and report fields (rank 0; docs/baking.md#distributed-bakes).
 void addTraffic(const DistributedBake& job, nlohmann::json& report, bool print) {
     const DistributedTraffic t = job.traffic();
     const double probes = t.probes > 0 ? double(t.probes) : 1.0;

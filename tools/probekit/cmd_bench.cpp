@@ -53,7 +53,7 @@ struct BenchOptions {
     bool quick = false;
     uint32_t threads = 0;
     std::optional<int> sceneIndex;
-    // The view of the per-pixel figures (README, "Surface accuracy").
+    // The view of the per-pixel figures (docs/accuracy.md#surface-accuracy).
     CameraOptions surfaceView{{}, "+z", 40.0f, {96, 72}};
     std::optional<uint32_t> surfaceSamples;
 };

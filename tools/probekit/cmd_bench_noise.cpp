@@ -1,6 +1,7 @@
 // `probekit bench-noise`: time to a worst-probe noise, adaptive against fixed sampling (method
 // path). The noise is measured, not estimated: two bakes that differ only in their seed give
-// each probe's noise as the difference of their irradiance (README, "Adaptive sampling").
+// each probe's noise as the difference of their irradiance
+// (docs/accuracy.md#adaptive-against-fixed-sampling).
 #include <algorithm>
 #include <array>
 #include <cmath>

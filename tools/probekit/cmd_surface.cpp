@@ -1,6 +1,7 @@
 // `probekit surface-reference` and `probekit surface-error`: the per-pixel accuracy of a
-// volume's shading against a path-traced reference of the same view (README, "Surface
-// accuracy"; runtime/include/probekit/runtime/surface_error.hpp defines the figures).
+// volume's shading against a path-traced reference of the same view
+// (docs/accuracy.md#surface-accuracy; runtime/include/probekit/runtime/surface_error.hpp defines
+// the figures).
 //
 // surface-reference traces one ray per pixel through the same camera `probekit render` uses
 // (same options, runtime::pixelDirection), and at each first hit path-traces E with the baker's

@@ -10,7 +10,7 @@
 
 namespace probekit::cli {
 
-// Exit codes (documented in the README):
+// Exit codes (documented in docs/commands.md#exit-codes):
 constexpr int kExitOk = 0;
 constexpr int kExitFailure = 1; // the operation failed (bad input, invalid file, I/O error)
 constexpr int kExitUsage = 2;   // bad command line (CLI11 parse error)

@@ -1,4 +1,4 @@
-// probekit bake across processes (README, "Distributed bakes"): under `mpirun` or `srun` each
+// probekit bake across processes (docs/baking.md#distributed-bakes): under `mpirun` or `srun` each
 // process runs the same bake and the probes are shared out through MPI (baker::ProbeDistributor).
 // Built only when CMake finds MPI (PROBEKIT_WITH_MPI); without it every process bakes alone.
 #pragma once

@@ -76,7 +76,7 @@ nlohmann::json describe(const PvolFile& file, std::string_view source, uint64_t 
         {"parameters", params.is_discarded() ? nlohmann::json(m.parametersJson) : params},
         {"seed", m.seed},
         {"scene_hash", hash},
-        // 0 in files baked since bake seconds left the file (README, "The .pvol format").
+        // 0 in files baked since bake seconds left the file (docs/format.md#the-pvol-format).
         {"bake_seconds", m.bakeSeconds}};
     j["volumes"] = nlohmann::json::array();
     for (const Volume& v : file.volumes) {

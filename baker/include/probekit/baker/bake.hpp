@@ -39,7 +39,7 @@ Result<VolumePlan> planVolumes(const Scene& scene, const BakeConfig& config);
 // field for zero-size or inverted bounds, unknown nodes, an empty scene with automatic bounds,
 // bad resolutions, or a total size beyond config.maxMemoryBytes; naming the file and the node,
 // light or volume for coordinates beyond the range a bake supports (|x|, |y|, |z| <= 1e7 m,
-// README "Scenes").
+// docs/baking.md#scenes).
 Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeConfig& config);
 
 // Smallest distance between probes a volume may have per axis, metres: the grid spacing of a
@@ -79,7 +79,7 @@ struct ProbeChunkStats {
     }
 };
 
-// A bake spread over several processes (README, "Distributed bakes"): every process runs the
+// A bake spread over several processes (docs/baking.md#distributed-bakes): every process runs the
 // same bake with the same inputs; each batch of probes it meets (a dense volume, a bricked
 // volume's level, ...) goes through run(), which has compute(begin, end) called for every
 // chunk of [0, count) on exactly one of the processes and returns once every process holds
@@ -123,8 +123,8 @@ struct BakeStats {
     double deringMaxChange = 0.0;
     uint64_t peakMemoryBytes = 0; // the process's peak resident set (getrusage)
     // The memory model's prediction of that peak, made before the bake allocated anything big
-    // (README, max_memory_mb): the phase that peaks and its terms (what, bytes). For bricked
-    // volumes it counts refinement at its bound, predictedRefinementBytes of it.
+    // (docs/baking.md#memory-max_memory_mb): the phase that peaks and its terms (what, bytes). For
+    // bricked volumes it counts refinement at its bound, predictedRefinementBytes of it.
     uint64_t predictedPeakBytes = 0;
     uint64_t predictedRefinementBytes = 0;
     std::string predictedPeakPhase;
@@ -164,8 +164,8 @@ struct BakeResult {
 // Checks the config first (validateBakeConfig, settings.hpp): a config built in code gets the
 // errors a config file would. Then fails on a scene that emits no light (checkSceneLit) unless
 // options.allowUnlit, which turns that error into a warning; on the errors of planVolumes; and,
-// before building the BVH, on a predicted peak memory above max_memory_mb (README, Memory),
-// naming the largest terms.
+// before building the BVH, on a predicted peak memory above max_memory_mb
+// (docs/baking.md#memory-max_memory_mb), naming the largest terms.
 Result<BakeResult> bake(const Scene& scene, const BakeConfig& config,
                         const BakeOptions& options = {});
 

@@ -217,20 +217,20 @@ struct BakeConfig {
     bool nudge = true;
     // Dense volumes: a probe inside geometry is baked at the nearest free point within one cell
     // instead (virtual offset; baker/src/visibility.hpp), and lights the surfaces of the solid
-    // it sits in (README, "Surface accuracy").
+    // it sits in (docs/accuracy.md#surface-accuracy).
     bool relocate = true;
     // Store per-probe occluder distances (formats/.../visibility.hpp) so that interpolation
     // between probes does not carry light through walls; 54 rays per probe.
     bool visibility = true;
     // Window every stored probe's SH bands 1 and 2 so that its irradiance is non-negative for
-    // every normal (sh::deringIrradiance, formats/.../sh.hpp; README, "Deringing"): SH
+    // every normal (sh::deringIrradiance, formats/.../sh.hpp; docs/baking.md#deringing): SH
     // truncation otherwise gives negative irradiance facing away from a small bright light.
     bool dering = true;
-    // The bake's predicted peak memory (the memory model, README) may not exceed this, nor
-    // 256 MiB when less (error); dense volumes' grids may not exceed it either. Bricked volumes:
-    // their refinement uses what is left of it, and it is the budget for their GPU bytes
-    // (texels + indirection); when that binds, the refinements whose removal costs the least
-    // error are dropped (BakeStats::budgetDropped / budgetError).
+    // The bake's predicted peak memory (the memory model, docs/baking.md#memory-max_memory_mb) may
+    // not exceed this, nor 256 MiB when less (error); dense volumes' grids may not exceed it
+    // either. Bricked volumes: their refinement uses what is left of it, and it is the budget for
+    // their GPU bytes (texels + indirection); when that binds, the refinements whose removal costs
+    // the least error are dropped (BakeStats::budgetDropped / budgetError).
     uint64_t maxMemoryBytes = 4ull << 30;
     std::vector<VolumeConfig> volumes; // empty = one auto-world volume with defaults
     // "target_error": let chooseSettings pick density, refinement, SH order and sample count

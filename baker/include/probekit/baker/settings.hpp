@@ -19,7 +19,7 @@ namespace probekit::baker {
 struct SettingInfo {
     std::string path;   // JSON path in the config file: "lpv.grid"; per volume: "volumes[].density"
     std::string flag;   // `probekit bake` flag ("--lpv-grid"); empty when the setting has none
-    std::string help;   // one line for --help and the README's config table
+    std::string help;   // one line for --help and the config table (docs/baking.md#config)
     std::string unit;   // "m", "MiB", "cells" ...; empty for counts, names and fractions
     std::string admits; // the values it takes, e.g. "4..256", "none, distance, spherical", "> 0"
     std::string type;   // what a value is: "INT", "NUMBER", "BOOL" or "NAME"

@@ -1,6 +1,6 @@
 // probekit::baker surface reference — path-traced irradiance at the surfaces a camera sees:
-// the per-pixel reference a probe volume's shading is measured against (README, "Surface
-// accuracy").
+// the per-pixel reference a probe volume's shading is measured against
+// (docs/accuracy.md#surface-accuracy).
 //
 // For each ray (one per pixel): its first hit in the scene; there, irradiance E (W/m^2 per
 // channel, not divided by pi) for the shading normal a renderer would use — the glTF vertex

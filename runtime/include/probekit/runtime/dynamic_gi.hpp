@@ -7,7 +7,7 @@
 // the geometry, `bounces` times; not the lights' direct light, which the renderer shades itself
 // (FrameSettings::directLight) with the sun's visibility marched through the geometry volume.
 // Combining with a baked volume without counting light twice: a light is either baked or given
-// to DynamicGi, never both; the renderer adds the two irradiances (README, "Dynamic GI").
+// to DynamicGi, never both; the renderer adds the two irradiances (docs/runtime.md#dynamic-gi).
 //
 // Every compute stage has a CPU twin in runtime/src/gi_twin.hpp (its specification and the
 // GPU tests' oracle).
@@ -142,7 +142,7 @@ public:
 
     GiTimings timings() const;
     // Bytes of GPU memory the cascades' buffers hold (all float32 and int32: the twin's layouts;
-    // README, "Dynamic GI").
+    // docs/runtime.md#dynamic-gi).
     uint64_t gpuBytes() const;
     GiShadingInputs shadingInputs() const;
     const DynamicGiSettings& settings() const;

@@ -1,6 +1,6 @@
-// Per-pixel error of a volume's shading against a path-traced surface reference (README,
-// "Surface accuracy"): what a user sees, where every other accuracy figure of probekit is taken
-// at points in free space.
+// Per-pixel error of a volume's shading against a path-traced surface reference
+// (docs/accuracy.md#surface-accuracy): what a user sees, where every other accuracy figure of
+// probekit is taken at points in free space.
 //
 // Both images are the same view, pixel for pixel: the reference holds, per pixel, the surface
 // point, its shading normal, the path-traced irradiance and that estimate's standard error
