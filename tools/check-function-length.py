@@ -527,7 +527,7 @@ def main() -> int:
     for row in problems + notes:
         print(row)
     if problems:
-        print(f"check-function-length: {len(problems)} problems; {len(over)} of {len(found)} "
+        print(f"check-function-length: {len(problems)} problems, {len(over)} of {len(found)} "
               f"functions over {args.limit} lines: split new ones into steps with one job each")
         return 1
     lines, path, line, name = found[0]
