@@ -286,6 +286,8 @@ def _qualified_name(stmt, paren, first):
                     break
                 start -= 1
             start -= 1
+    if start > 0 and stmt[start - 1][0] == "~":
+        start -= 1
     while start >= 2 and stmt[start - 1][0] == "::":
         prev = start - 2
         if stmt[prev][0] == ">":
@@ -299,8 +301,6 @@ def _qualified_name(stmt, paren, first):
         if prev < 0 or not _is_ident(stmt[prev][0]):
             break
         start = prev
-    if start > 0 and stmt[start - 1][0] == "~":
-        start -= 1
     name = ""
     for tok, _ in stmt[start:paren]:
         if name and _is_ident(tok) and (_is_ident(name[-1]) or name[-1].isdigit()):
@@ -310,7 +310,8 @@ def _qualified_name(stmt, paren, first):
 
 
 def _class_name(stmt):
-    """The name of a class/struct/union head (empty when anonymous)."""
+    """The name of a class/struct/union head as written, e.g. `Renderer::Impl` (empty when
+    anonymous)."""
     name = ""
     k = 1
     while k < len(stmt):
@@ -324,7 +325,7 @@ def _class_name(stmt):
             k = _matching(stmt, k, "[", "]") + 1
             continue
         if _is_ident(t) and t not in ("final", "alignas", "__attribute__", "__declspec"):
-            name = t
+            name = name + "::" + t if stmt[k - 1][0] == "::" and name else t
         k += 1
     return name
 
@@ -332,7 +333,11 @@ def _class_name(stmt):
 def _init_list_pending(stmt, paren):
     """True when stmt, a function head, ends inside a constructor's member initializer list."""
     close = _matching(stmt, paren, "(", ")")
-    colon = any(t == ":" for t, _ in stmt[close + 1:])
+    depth = 0
+    colon = False
+    for t, _ in stmt[close + 1:]:
+        depth += {"(": 1, ")": -1, "[": 1, "]": -1}.get(t, 0)
+        colon = colon or (t == ":" and depth == 0)
     if not colon:
         return False
     last = stmt[-1][0]
@@ -393,7 +398,7 @@ def _open_brace(tokens, i, stmt, scopes, found):
         return i + 1
     if first in ("typedef", "export") and len(words) > 1:
         head, words, first = head[1:], words[1:], words[1]
-    if first in CLASS_KEYS:
+    if first in CLASS_KEYS and "=" not in words and _parameter_list(head) is None:
         scopes.append(("class", _class_name(head)))
         return i + 1
     close = _matching(tokens, i, "{", "}")
