@@ -88,114 +88,117 @@ void parallelRanges(size_t count, uint32_t threads, const Body& body) {
 // along direction d, channel ch.
 using CrossingPlanes = std::array<std::vector<float>, 18>;
 
-// One step. First every cell receives the free transfers of its six neighbours (rows of cells
-// along x, so the inner loops vectorise), then the corrections of blocked transfers, then the
-// positivity pass (file comment of lpv.hpp). The flux a transfer carries across a face is row 0
-// of T_d I over Y00 (a beam of flux F has band 0 F Y00). Work is split by z slab; every cell's
-// sum is formed in the same order whatever the split, and the flux totals are summed in double
-// in a fixed order. Returns the (negative) flux zeroed and redistributed.
-glm::vec3 stepInto(const LpvCascadeLayout& layout, const LpvTransfer& transfer,
-                   const LpvField& current, LpvField& next, CrossingPlanes* crossing,
-                   uint32_t threads) {
-    const glm::ivec3 n = layout.cells;
-    const size_t count = layout.cellCount();
-    next = LpvField(count);
-    std::array<SparseTransfer, 6> free;
-    for (int d = 0; d < 6; ++d) {
-        free[d] = sparseOf(transfer.free[d], d);
-    }
+// Row `length` cells long of one free transfer `t` (direction d) from `current` at src_row into
+// `next` at dst_row, for every channel; with `crossing`, the flux across the faces too.
+inline void transferRow(const SparseTransfer& t, int d, const LpvField& current, LpvField& next,
+                        size_t src_row, size_t dst_row, int length, CrossingPlanes* crossing) {
     const float inv_y00 = 1.0f / sh::kY00;
-    std::vector<glm::dvec3> dropped_per_slab(size_t(n.z), glm::dvec3(0.0));
-    parallelRanges(size_t(n.z), threads, [&](size_t z_begin, size_t z_end) {
-        for (int z = int(z_begin); z < int(z_end); ++z) {
-            for (int y = 0; y < n.y; ++y) {
-                const size_t row = layout.index(glm::ivec3(0, y, z));
-                for (int d = 0; d < 6; ++d) {
-                    // The row the light comes from (cell - direction) and which x receive.
-                    const glm::ivec3 from(0, y - kDirections[d].y, z - kDirections[d].z);
-                    if (from.y < 0 || from.y >= n.y || from.z < 0 || from.z >= n.z) {
-                        continue;
-                    }
-                    const int shift = kDirections[d].x; // destination x = source x + shift
-                    const int x_begin = std::max(0, shift);
-                    const int x_end = n.x + std::min(0, shift);
-                    const size_t src_row = layout.index(from) - size_t(shift) + size_t(x_begin);
-                    const size_t dst_row = row + size_t(x_begin);
-                    const int length = x_end - x_begin;
-                    const SparseTransfer& t = free[d];
-                    const int o1 = t.axisIndex == 1 ? 2 : 1;
-                    const int o2 = t.axisIndex == 3 ? 2 : 3;
-                    for (int ch = 0; ch < 3; ++ch) {
-                        // Distinct planes: restrict lets the loop run in SIMD lanes.
-                        const float* __restrict c0 = current.plane(0, ch) + src_row;
-                        const float* __restrict ca = current.plane(t.axisIndex, ch) + src_row;
-                        const float* __restrict c1 = current.plane(o1, ch) + src_row;
-                        const float* __restrict c2 = current.plane(o2, ch) + src_row;
-                        float* __restrict n0 = next.plane(0, ch) + dst_row;
-                        float* __restrict na = next.plane(t.axisIndex, ch) + dst_row;
-                        float* __restrict n1 = next.plane(o1, ch) + dst_row;
-                        float* __restrict n2 = next.plane(o2, ch) + dst_row;
-                        const float d0 = t.diagonal[0];
-                        const float da = t.diagonal[t.axisIndex];
-                        const float d1 = t.diagonal[o1];
-                        const float d2 = t.diagonal[o2];
-                        const float k = t.coupling;
-                        for (int x = 0; x < length; ++x) {
-                            n0[x] += d0 * c0[x] + k * ca[x];
-                            na[x] += k * c0[x] + da * ca[x];
-                            n1[x] += d1 * c1[x];
-                            n2[x] += d2 * c2[x];
-                        }
-                        if (crossing) {
-                            float* __restrict cross = (*crossing)[3 * d + ch].data() + dst_row;
-                            const float k0 = d0 * inv_y00;
-                            const float ka = k * inv_y00;
-                            for (int x = 0; x < length; ++x) {
-                                cross[x] += k0 * c0[x] + ka * ca[x];
-                            }
-                        }
-                    }
-                }
+    const int o1 = t.axisIndex == 1 ? 2 : 1;
+    const int o2 = t.axisIndex == 3 ? 2 : 3;
+    for (int ch = 0; ch < 3; ++ch) {
+        // Distinct planes: restrict lets the loop run in SIMD lanes.
+        const float* __restrict c0 = current.plane(0, ch) + src_row;
+        const float* __restrict ca = current.plane(t.axisIndex, ch) + src_row;
+        const float* __restrict c1 = current.plane(o1, ch) + src_row;
+        const float* __restrict c2 = current.plane(o2, ch) + src_row;
+        float* __restrict n0 = next.plane(0, ch) + dst_row;
+        float* __restrict na = next.plane(t.axisIndex, ch) + dst_row;
+        float* __restrict n1 = next.plane(o1, ch) + dst_row;
+        float* __restrict n2 = next.plane(o2, ch) + dst_row;
+        const float d0 = t.diagonal[0];
+        const float da = t.diagonal[t.axisIndex];
+        const float d1 = t.diagonal[o1];
+        const float d2 = t.diagonal[o2];
+        const float k = t.coupling;
+        for (int x = 0; x < length; ++x) {
+            n0[x] += d0 * c0[x] + k * ca[x];
+            na[x] += k * c0[x] + da * ca[x];
+            n1[x] += d1 * c1[x];
+            n2[x] += d2 * c2[x];
+        }
+        if (crossing) {
+            float* __restrict cross = (*crossing)[3 * d + ch].data() + dst_row;
+            const float k0 = d0 * inv_y00;
+            const float ka = k * inv_y00;
+            for (int x = 0; x < length; ++x) {
+                cross[x] += k0 * c0[x] + ka * ca[x];
             }
         }
-        // Corrections of the transfers a surface touches, for destinations in this slab range, in
-        // (destination, direction) order.
-        const size_t slab_cells = size_t(n.x) * size_t(n.y);
-        auto first = std::lower_bound(
-            transfer.corrections.begin(), transfer.corrections.end(), z_begin * slab_cells,
-            [](const LpvTransfer::Correction& c, size_t cell) { return c.destination < cell; });
-        for (auto c = first; c != transfer.corrections.end() && c->destination < z_end * slab_cells;
-             ++c) {
-            const Sh1Rgb delta = multiply(c->delta, current.at(c->source));
-            next.add(c->destination, delta);
-            if (crossing) {
-                for (int ch = 0; ch < 3; ++ch) {
-                    (*crossing)[3 * c->direction + ch][c->destination] += delta.c[0][ch] * inv_y00;
-                }
-            }
-        }
-        const size_t slab = size_t(n.x) * size_t(n.y);
-        for (size_t z = z_begin; z < z_end; ++z) {
-            for (int ch = 0; ch < 3; ++ch) {
-                float* planes[4] = {next.plane(0, ch), next.plane(1, ch), next.plane(2, ch),
-                                    next.plane(3, ch)};
-                for (size_t i = z * slab; i < (z + 1) * slab; ++i) {
-                    if (planes[0][i] < 0.0f) {
-                        dropped_per_slab[z][ch] += double(kSqrtFourPi * planes[0][i]);
-                        for (float* p : planes) {
-                            p[i] = 0.0f;
-                        }
-                    }
-                }
-            }
-        }
-    });
-    glm::dvec3 dropped(0.0);
-    for (const glm::dvec3& d : dropped_per_slab) {
-        dropped += d;
     }
-    // The negative flux removed is taken back from the positive light in proportion, so the
-    // step conserves flux exactly.
+}
+
+// The free transfers of the six neighbours into every cell of slabs [z_begin, z_end), a row of
+// cells along x at a time so the inner loops vectorise.
+void freeTransfersInto(const LpvCascadeLayout& layout, const std::array<SparseTransfer, 6>& free,
+                       const LpvField& current, LpvField& next, CrossingPlanes* crossing,
+                       size_t z_begin, size_t z_end) {
+    const glm::ivec3 n = layout.cells;
+    for (int z = int(z_begin); z < int(z_end); ++z) {
+        for (int y = 0; y < n.y; ++y) {
+            const size_t row = layout.index(glm::ivec3(0, y, z));
+            for (int d = 0; d < 6; ++d) {
+                // The row the light comes from (cell - direction) and which x receive.
+                const glm::ivec3 from(0, y - kDirections[d].y, z - kDirections[d].z);
+                if (from.y < 0 || from.y >= n.y || from.z < 0 || from.z >= n.z) {
+                    continue;
+                }
+                const int shift = kDirections[d].x; // destination x = source x + shift
+                const int x_begin = std::max(0, shift);
+                const int x_end = n.x + std::min(0, shift);
+                const size_t src_row = layout.index(from) - size_t(shift) + size_t(x_begin);
+                const size_t dst_row = row + size_t(x_begin);
+                transferRow(free[d], d, current, next, src_row, dst_row, x_end - x_begin, crossing);
+            }
+        }
+    }
+}
+
+// Corrections of the transfers a surface touches, for destinations in slabs [z_begin, z_end), in
+// (destination, direction) order.
+void correctionsInto(const LpvCascadeLayout& layout, const LpvTransfer& transfer,
+                     const LpvField& current, LpvField& next, CrossingPlanes* crossing,
+                     size_t z_begin, size_t z_end) {
+    const float inv_y00 = 1.0f / sh::kY00;
+    const size_t slab_cells = size_t(layout.cells.x) * size_t(layout.cells.y);
+    auto first = std::lower_bound(
+        transfer.corrections.begin(), transfer.corrections.end(), z_begin * slab_cells,
+        [](const LpvTransfer::Correction& c, size_t cell) { return c.destination < cell; });
+    for (auto c = first; c != transfer.corrections.end() && c->destination < z_end * slab_cells;
+         ++c) {
+        const Sh1Rgb delta = multiply(c->delta, current.at(c->source));
+        next.add(c->destination, delta);
+        if (crossing) {
+            for (int ch = 0; ch < 3; ++ch) {
+                (*crossing)[3 * c->direction + ch][c->destination] += delta.c[0][ch] * inv_y00;
+            }
+        }
+    }
+}
+
+// The positivity pass over slabs [z_begin, z_end): a cell with negative band 0 is zeroed, its
+// (negative) flux added to dropped_per_slab.
+void zeroNegativeCells(const LpvCascadeLayout& layout, LpvField& next, size_t z_begin, size_t z_end,
+                       std::vector<glm::dvec3>& dropped_per_slab) {
+    const size_t slab = size_t(layout.cells.x) * size_t(layout.cells.y);
+    for (size_t z = z_begin; z < z_end; ++z) {
+        for (int ch = 0; ch < 3; ++ch) {
+            float* planes[4] = {next.plane(0, ch), next.plane(1, ch), next.plane(2, ch),
+                                next.plane(3, ch)};
+            for (size_t i = z * slab; i < (z + 1) * slab; ++i) {
+                if (planes[0][i] < 0.0f) {
+                    dropped_per_slab[z][ch] += double(kSqrtFourPi * planes[0][i]);
+                    for (float* p : planes) {
+                        p[i] = 0.0f;
+                    }
+                }
+            }
+        }
+    }
+}
+
+// The negative flux removed is taken back from the positive light in proportion, so the step
+// conserves flux exactly.
+void restoreFlux(LpvField& next, glm::dvec3 dropped, size_t count) {
     const glm::dvec3 kept = next.totalFlux();
     for (int ch = 0; ch < 3; ++ch) {
         if (kept[ch] > 0.0 && dropped[ch] < 0.0) {
@@ -208,6 +211,35 @@ glm::vec3 stepInto(const LpvCascadeLayout& layout, const LpvTransfer& transfer,
             }
         }
     }
+}
+
+// One step. First every cell receives the free transfers of its six neighbours, then the
+// corrections of blocked transfers, then the positivity pass (file comment of lpv.hpp). The flux
+// a transfer carries across a face is row 0 of T_d I over Y00 (a beam of flux F has band 0
+// F Y00). Work is split by z slab; every cell's sum is formed in the same order whatever the
+// split, and the flux totals are summed in double in a fixed order. Returns the (negative) flux
+// zeroed and redistributed.
+glm::vec3 stepInto(const LpvCascadeLayout& layout, const LpvTransfer& transfer,
+                   const LpvField& current, LpvField& next, CrossingPlanes* crossing,
+                   uint32_t threads) {
+    const glm::ivec3 n = layout.cells;
+    const size_t count = layout.cellCount();
+    next = LpvField(count);
+    std::array<SparseTransfer, 6> free;
+    for (int d = 0; d < 6; ++d) {
+        free[d] = sparseOf(transfer.free[d], d);
+    }
+    std::vector<glm::dvec3> dropped_per_slab(size_t(n.z), glm::dvec3(0.0));
+    parallelRanges(size_t(n.z), threads, [&](size_t z_begin, size_t z_end) {
+        freeTransfersInto(layout, free, current, next, crossing, z_begin, z_end);
+        correctionsInto(layout, transfer, current, next, crossing, z_begin, z_end);
+        zeroNegativeCells(layout, next, z_begin, z_end, dropped_per_slab);
+    });
+    glm::dvec3 dropped(0.0);
+    for (const glm::dvec3& d : dropped_per_slab) {
+        dropped += d;
+    }
+    restoreFlux(next, dropped, count);
     return glm::vec3(dropped);
 }
 
@@ -346,25 +378,27 @@ TriangleCorners triangleCorners(const Scene& scene, glm::uvec3 t) {
     return {a, b, c, glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c))};
 }
 
-LpvTransfer buildLpvTransfer(const Scene& scene, const LpvCascadeLayout& layout,
-                             const LpvSettings& settings) {
-    LpvTransfer out;
-    std::array<float, 5> free_keep;
-    free_keep.fill(settings.propagationWeight);
-    for (int d = 0; d < 6; ++d) {
-        out.free[d] = transferMatrix(d, free_keep);
-    }
-    if (!settings.occlusion) {
-        return out;
-    }
+namespace {
 
-    // Geometry cells are centred on the LPV cell corners: cells + 1 per axis.
+// The geometry volume: SH blocking potential per geometry cell. Geometry cells are centred on
+// the LPV cell corners: cells + 1 per axis.
+struct GeometryVolume {
+    glm::ivec3 size;
+    std::vector<sh::Coeffs> blocking;
+
+    const sh::Coeffs& at(glm::ivec3 g) const { return blocking[index(g)]; }
+    size_t index(glm::ivec3 g) const {
+        return size_t(g.x) + size_t(size.x) * (size_t(g.y) + size_t(size.y) * size_t(g.z));
+    }
+};
+
+// Splats every triangle's area into the geometry cells around it as the SH of (n.w)^2 per unit
+// cell face area.
+GeometryVolume buildGeometryVolume(const Scene& scene, const LpvCascadeLayout& layout) {
     const float s = layout.cellSize;
-    const glm::ivec3 gv = layout.cells + 1;
-    auto gv_index = [&](glm::ivec3 g) {
-        return size_t(g.x) + size_t(gv.x) * (size_t(g.y) + size_t(gv.y) * size_t(g.z));
-    };
-    std::vector<sh::Coeffs> blocking(size_t(gv.x) * size_t(gv.y) * size_t(gv.z), sh::Coeffs{});
+    GeometryVolume gv;
+    gv.size = layout.cells + 1;
+    gv.blocking.assign(size_t(gv.size.x) * size_t(gv.size.y) * size_t(gv.size.z), sh::Coeffs{});
     const grid::Aabb box{layout.origin - 0.5f * s, layout.max() + 0.5f * s};
     // Funk-Hecke: the SH of (n.w)^2 are lambda_l Y_lm(n), lambda = 2 pi int t^2 P_l(t) dt.
     constexpr std::array<float, 3> kLambda = {4.0f / 3.0f * sh::kPi, 0.0f, 8.0f / 15.0f * sh::kPi};
@@ -384,14 +418,95 @@ LpvTransfer buildLpvTransfer(const Scene& scene, const LpvCascadeLayout& layout,
         }
         sampleTriangleInBox(a, b, c, box, 0.5f * s, [&](glm::vec3 p, float area) {
             const glm::ivec3 g = glm::clamp(glm::ivec3(glm::floor((p - layout.origin) / s + 0.5f)),
-                                            glm::ivec3(0), gv - 1);
-            sh::Coeffs& cell = blocking[gv_index(g)];
+                                            glm::ivec3(0), gv.size - 1);
+            sh::Coeffs& cell = gv.blocking[gv.index(g)];
             for (int k = 0; k < sh::kMaxCoefficients; ++k) {
                 cell[k] += area * per_unit_area[k];
             }
         });
     }
+    return gv;
+}
 
+// What a cell's faces let through: keep[d][f] for face f of direction d's transfer, and whether
+// any face of direction d is blocked at all.
+struct CellPassage {
+    std::array<std::array<float, 5>, 6> keep;
+    std::array<bool, 6> blocked{};
+};
+
+CellPassage cellPassage(const GeometryVolume& gv, glm::ivec3 cell,
+                        const std::array<std::array<sh::Coeffs, 5>, 6>& face_basis,
+                        float propagation_weight) {
+    CellPassage out;
+    for (int d = 0; d < 6; ++d) {
+        // The plane of geometry-cell centres the face lies on, and the four centres at its
+        // corners: bilinear weights 1/4 each at the face centre.
+        const int axis = d / 2;
+        glm::ivec3 g0 = cell;
+        g0[axis] += kDirections[d][axis] > 0 ? 1 : 0;
+        const int u = (axis + 1) % 3;
+        const int v = (axis + 2) % 3;
+        sh::Coeffs b{};
+        for (int corner = 0; corner < 4; ++corner) {
+            glm::ivec3 g = g0;
+            g[u] += corner & 1;
+            g[v] += corner >> 1;
+            for (int k = 0; k < sh::kMaxCoefficients; ++k) {
+                b[k] += 0.25f * gv.at(g)[k];
+            }
+        }
+        for (int f = 0; f < 5; ++f) {
+            float potential = 0.0f;
+            for (int k = 0; k < sh::kMaxCoefficients; ++k) {
+                potential += b[k] * face_basis[d][f][k];
+            }
+            const float pass = 1.0f - std::clamp(potential, 0.0f, 1.0f);
+            out.keep[d][f] = propagation_weight * pass;
+            out.blocked[d] = out.blocked[d] || pass < 1.0f;
+        }
+    }
+    return out;
+}
+
+// Adds the corrections to the free transfer of `cell`'s blocked directions.
+void addCorrections(const LpvCascadeLayout& layout, glm::ivec3 cell, const CellPassage& passage,
+                    LpvTransfer& out) {
+    for (int d = 0; d < 6; ++d) {
+        if (!passage.blocked[d]) {
+            continue;
+        }
+        LpvTransfer::Correction c{};
+        const glm::ivec3 to = cell + kDirections[d];
+        c.source = uint32_t(layout.index(cell));
+        c.direction = uint32_t(d);
+        c.delta = transferMatrix(d, passage.keep[d]);
+        for (int k = 0; k < 16; ++k) {
+            c.delta[k] -= out.free[d][k];
+        }
+        if (layout.containsCell(to)) {
+            c.destination = uint32_t(layout.index(to));
+            out.corrections.push_back(c);
+        } else {
+            out.border.push_back(c);
+        }
+    }
+}
+
+} // namespace
+
+LpvTransfer buildLpvTransfer(const Scene& scene, const LpvCascadeLayout& layout,
+                             const LpvSettings& settings) {
+    LpvTransfer out;
+    std::array<float, 5> free_keep;
+    free_keep.fill(settings.propagationWeight);
+    for (int d = 0; d < 6; ++d) {
+        out.free[d] = transferMatrix(d, free_keep);
+    }
+    if (!settings.occlusion) {
+        return out;
+    }
+    const GeometryVolume gv = buildGeometryVolume(scene, layout);
     std::array<std::array<sh::Coeffs, 5>, 6> face_basis;
     for (int d = 0; d < 6; ++d) {
         for (int f = 0; f < 5; ++f) {
@@ -403,54 +518,8 @@ LpvTransfer buildLpvTransfer(const Scene& scene, const LpvCascadeLayout& layout,
         for (int y = 0; y < n.y; ++y) {
             for (int x = 0; x < n.x; ++x) {
                 const glm::ivec3 cell(x, y, z);
-                std::array<std::array<float, 5>, 6> keep;
-                std::array<bool, 6> blocked{};
-                for (int d = 0; d < 6; ++d) {
-                    // The plane of geometry-cell centres the face lies on, and the four centres
-                    // at its corners: bilinear weights 1/4 each at the face centre.
-                    const int axis = d / 2;
-                    glm::ivec3 g0 = cell;
-                    g0[axis] += kDirections[d][axis] > 0 ? 1 : 0;
-                    const int u = (axis + 1) % 3;
-                    const int v = (axis + 2) % 3;
-                    sh::Coeffs b{};
-                    for (int corner = 0; corner < 4; ++corner) {
-                        glm::ivec3 g = g0;
-                        g[u] += corner & 1;
-                        g[v] += corner >> 1;
-                        for (int k = 0; k < sh::kMaxCoefficients; ++k) {
-                            b[k] += 0.25f * blocking[gv_index(g)][k];
-                        }
-                    }
-                    for (int f = 0; f < 5; ++f) {
-                        float potential = 0.0f;
-                        for (int k = 0; k < sh::kMaxCoefficients; ++k) {
-                            potential += b[k] * face_basis[d][f][k];
-                        }
-                        const float pass = 1.0f - std::clamp(potential, 0.0f, 1.0f);
-                        keep[d][f] = settings.propagationWeight * pass;
-                        blocked[d] = blocked[d] || pass < 1.0f;
-                    }
-                }
-                for (int d = 0; d < 6; ++d) {
-                    if (!blocked[d]) {
-                        continue;
-                    }
-                    LpvTransfer::Correction c{};
-                    const glm::ivec3 to = cell + kDirections[d];
-                    c.source = uint32_t(layout.index(cell));
-                    c.direction = uint32_t(d);
-                    c.delta = transferMatrix(d, keep[d]);
-                    for (int k = 0; k < 16; ++k) {
-                        c.delta[k] -= out.free[d][k];
-                    }
-                    if (layout.containsCell(to)) {
-                        c.destination = uint32_t(layout.index(to));
-                        out.corrections.push_back(c);
-                    } else {
-                        out.border.push_back(c);
-                    }
-                }
+                addCorrections(layout, cell,
+                               cellPassage(gv, cell, face_basis, settings.propagationWeight), out);
             }
         }
     }
