@@ -21,7 +21,9 @@ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_CXX_FLAGS="$flags" -DCMAKE_C_FLAGS="$flags" \
     -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" \
     -DPROBEKIT_BUILD_TESTS=OFF -DPROBEKIT_FUZZ=ON >/dev/null
-cmake --build build-fuzz --parallel "$(nproc)" --target "${targets[@]}"
+cmake --build build-fuzz --parallel "$(nproc)" --target "${targets[@]}" fuzz_config_dict
+# The config fuzzer's dictionary is written from the settings table, never kept by hand.
+build-fuzz/fuzz/fuzz_config_dict >build-fuzz/fuzz_config.dict
 
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:symbolize=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
@@ -35,6 +37,7 @@ for target in "${targets[@]}"; do
     # -dict: JSON tokens help the text formats past their first syntax errors.
     dict=()
     [[ -f "fuzz/$target.dict" ]] && dict=(-dict="fuzz/$target.dict")
+    [[ -f "build-fuzz/$target.dict" ]] && dict=(-dict="build-fuzz/$target.dict")
     if ! "build-fuzz/fuzz/$target" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
         -print_final_stats=1 -artifact_prefix="build-fuzz/artifacts/$target-" "${dict[@]}" \
         "$work" "fuzz/corpus/$target" >"$log" 2>&1; then
