@@ -757,6 +757,22 @@ private:
                                 const std::string& usage) const {
         const std::string field =
             "accessors[" + std::to_string(index) + "]" + (usage.empty() ? "" : " (" + usage + ")");
+        const tinygltf::Accessor& accessor = checkedAccessor(index, expected_type, indices, field);
+        const size_t component_size = componentSize(accessor.componentType);
+        const size_t components = componentCount(accessor.type);
+        std::vector<T> out = accessor.bufferView >= 0
+                                 ? readViewElements<T>(accessor, components, component_size, field)
+                                 : zeroElements<T>(accessor, components, field);
+        if (accessor.sparse.isSparse) {
+            applySparse(accessor, field, components, component_size, out);
+        }
+        return out;
+    }
+
+    // Accessor `index`, checked to exist, to have the expected type and a componentType glTF
+    // allows (unnormalized unsigned integers for indices).
+    const tinygltf::Accessor& checkedAccessor(int index, int expected_type, bool indices,
+                                              const std::string& field) const {
         if (index < 0 || static_cast<size_t>(index) >= m_model.accessors.size()) {
             fail(ErrorCode::OutOfRange, field + " is out of range (" +
                                             std::to_string(m_model.accessors.size()) +
@@ -767,8 +783,7 @@ private:
             fail(ErrorCode::InvalidArgument, field + " has type " + typeName(accessor.type) +
                                                  ", expected " + typeName(expected_type));
         }
-        const size_t component_size = componentSize(accessor.componentType);
-        if (component_size == 0) {
+        if (componentSize(accessor.componentType) == 0) {
             fail(ErrorCode::BadEnum, field + " has componentType " +
                                          std::to_string(accessor.componentType) +
                                          ", which glTF 2.0 does not allow here");
@@ -779,69 +794,72 @@ private:
              accessor.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT || accessor.normalized)) {
             fail(ErrorCode::BadEnum, field + " must hold unnormalized unsigned integers");
         }
-        const size_t components = componentCount(accessor.type);
+        return accessor;
+    }
+
+    // Refuses `count` elements of `components` T's when they do not fit the budget. Predicted
+    // before the vector is allocated, so that no count in the file can make the expansion
+    // exceed the budget (a sparse accessor's zeros are backed by nothing).
+    template <class T>
+    void checkExpansion(size_t count, size_t components, const std::string& field) const {
+        const uint64_t per_element = uint64_t(components) * sizeof(T);
+        const uint64_t bytes = count > UINT64_MAX / per_element ? UINT64_MAX : count * per_element;
+        if (!m_budget.fits(bytes)) {
+            fail(ErrorCode::OutOfRange,
+                 m_budget.refusal(field + " (" + std::to_string(count) + " x " +
+                                      std::to_string(components) + " x " +
+                                      std::to_string(sizeof(T)) + " bytes, expanded)",
+                                  bytes));
+        }
+    }
+
+    // The elements of an accessor with a bufferView, converted to T.
+    template <class T>
+    std::vector<T> readViewElements(const tinygltf::Accessor& accessor, size_t components,
+                                    size_t component_size, const std::string& field) const {
         const size_t element_size = components * component_size;
         const size_t count = accessor.count;
-        const bool normalized = accessor.normalized;
-        // Predicted before the vector is allocated, so that no count in the file can make the
-        // expansion exceed the budget (a sparse accessor's zeros are backed by nothing).
-        auto checkBudget = [&] {
-            const uint64_t per_element = uint64_t(components) * sizeof(T);
-            const uint64_t bytes =
-                count > UINT64_MAX / per_element ? UINT64_MAX : count * per_element;
-            if (!m_budget.fits(bytes)) {
-                fail(ErrorCode::OutOfRange,
-                     m_budget.refusal(field + " (" + std::to_string(count) + " x " +
-                                          std::to_string(components) + " x " +
-                                          std::to_string(sizeof(T)) + " bytes, expanded)",
-                                      bytes));
-            }
-        };
-
-        std::vector<T> out;
-        if (accessor.bufferView >= 0) {
-            const std::span<const uint8_t> view = bufferViewBytes(accessor.bufferView, field);
-            const size_t view_stride = m_model.bufferViews[size_t(accessor.bufferView)].byteStride;
-            const size_t stride = view_stride != 0 ? view_stride : element_size;
-            if (stride < element_size) {
-                fail(ErrorCode::InconsistentSize,
-                     field + ": bufferViews[" + std::to_string(accessor.bufferView) +
-                         "].byteStride " + std::to_string(view_stride) +
-                         " is smaller than one element (" + std::to_string(element_size) +
-                         " bytes)");
-            }
-            checkRange(view.size(), accessor.byteOffset, count, stride, element_size, field);
-            checkBudget();
-            out.resize(count * components);
-            for (size_t i = 0; i < count; ++i) {
-                const uint8_t* element = view.data() + accessor.byteOffset + i * stride;
-                for (size_t c = 0; c < components; ++c) {
-                    out[i * components + c] = static_cast<T>(readComponent(
-                        element + c * component_size, accessor.componentType, normalized));
-                }
-            }
-        } else {
-            // glTF: an accessor without a bufferView is all zeros (until sparse values apply).
-            if (!accessor.sparse.isSparse) {
-                fail(ErrorCode::InvalidArgument, field + " has neither a bufferView nor sparse "
-                                                         "values");
-            }
-            // Nothing in the file backs these zeros, so bound them before allocating: a
-            // corrupt count must give an error, not exhaust memory.
-            if (count > kMaxUnbackedElements) {
-                fail(ErrorCode::OutOfRange,
-                     field + ": count " + std::to_string(count) +
-                         " is too large for an accessor without a bufferView (at most " +
-                         std::to_string(kMaxUnbackedElements) + ")");
-            }
-            checkBudget();
-            out.assign(count * components, T(0));
+        const std::span<const uint8_t> view = bufferViewBytes(accessor.bufferView, field);
+        const size_t view_stride = m_model.bufferViews[size_t(accessor.bufferView)].byteStride;
+        const size_t stride = view_stride != 0 ? view_stride : element_size;
+        if (stride < element_size) {
+            fail(ErrorCode::InconsistentSize,
+                 field + ": bufferViews[" + std::to_string(accessor.bufferView) + "].byteStride " +
+                     std::to_string(view_stride) + " is smaller than one element (" +
+                     std::to_string(element_size) + " bytes)");
         }
-
-        if (accessor.sparse.isSparse) {
-            applySparse(accessor, field, components, component_size, out);
+        checkRange(view.size(), accessor.byteOffset, count, stride, element_size, field);
+        checkExpansion<T>(count, components, field);
+        std::vector<T> out(count * components);
+        for (size_t i = 0; i < count; ++i) {
+            const uint8_t* element = view.data() + accessor.byteOffset + i * stride;
+            for (size_t c = 0; c < components; ++c) {
+                out[i * components + c] = static_cast<T>(readComponent(
+                    element + c * component_size, accessor.componentType, accessor.normalized));
+            }
         }
         return out;
+    }
+
+    // glTF: an accessor without a bufferView is all zeros (until sparse values apply).
+    template <class T>
+    std::vector<T> zeroElements(const tinygltf::Accessor& accessor, size_t components,
+                                const std::string& field) const {
+        if (!accessor.sparse.isSparse) {
+            fail(ErrorCode::InvalidArgument, field + " has neither a bufferView nor sparse "
+                                                     "values");
+        }
+        // Nothing in the file backs these zeros, so bound them before allocating: a corrupt
+        // count must give an error, not exhaust memory.
+        const size_t count = accessor.count;
+        if (count > kMaxUnbackedElements) {
+            fail(ErrorCode::OutOfRange,
+                 field + ": count " + std::to_string(count) +
+                     " is too large for an accessor without a bufferView (at most " +
+                     std::to_string(kMaxUnbackedElements) + ")");
+        }
+        checkExpansion<T>(count, components, field);
+        return std::vector<T>(count * components, T(0));
     }
 
     void applySparse(const tinygltf::Accessor& accessor, const std::string& field,
@@ -1249,18 +1267,37 @@ private:
 
         PunctualLight light;
         light.name = source.name.empty() ? m_model.nodes[size_t(node_index)].name : source.name;
+        light.type = lightType(source, field);
+        const glm::dvec3 colour = lightColour(source, field);
+        setLightStrength(light, colour, source, field);
+        if (light.type == LightType::Spot) {
+            setSpotCones(light, source, field);
+        }
+        if (!placeLight(light, world, node_field, light_index)) {
+            return;
+        }
+        m_scene.lights.push_back(std::move(light));
+        m_scene.gltfLights.push_back(
+            GltfLight{light_index, glm::vec3(colour), static_cast<float>(source.intensity)});
+    }
+
+    LightType lightType(const tinygltf::Light& source, const std::string& field) const {
         if (source.type == "point") {
-            light.type = LightType::Point;
-        } else if (source.type == "spot") {
-            light.type = LightType::Spot;
-        } else if (source.type == "directional") {
-            light.type = LightType::Directional;
-        } else {
+            return LightType::Point;
+        }
+        if (source.type == "spot") {
+            return LightType::Spot;
+        }
+        if (source.type != "directional") {
             fail(ErrorCode::BadEnum, field + ".type '" + source.type +
                                          "' is not point, spot or "
                                          "directional");
         }
+        return LightType::Directional;
+    }
 
+    // The light's colour (white when absent), finite and >= 0.
+    glm::dvec3 lightColour(const tinygltf::Light& source, const std::string& field) const {
         glm::dvec3 colour(1.0);
         if (!source.color.empty()) {
             if (source.color.size() != 3) {
@@ -1271,6 +1308,12 @@ private:
         if (!isFinite(colour) || colour.x < 0 || colour.y < 0 || colour.z < 0) {
             fail(ErrorCode::OutOfRange, field + ".color must be finite and >= 0");
         }
+        return colour;
+    }
+
+    // Intensity x colour and range, checked as the floats they become.
+    void setLightStrength(PunctualLight& light, glm::dvec3 colour, const tinygltf::Light& source,
+                          const std::string& field) const {
         if (!std::isfinite(source.intensity) || source.intensity < 0) {
             fail(ErrorCode::OutOfRange, field + ".intensity must be finite and >= 0");
         }
@@ -1300,21 +1343,28 @@ private:
             fail(ErrorCode::NonFinite,
                  field + ".range " + numberText(source.range) + " overflows a 32-bit float");
         }
+    }
 
-        if (light.type == LightType::Spot) {
-            const double inner = source.spot.innerConeAngle;
-            const double outer = source.spot.outerConeAngle;
-            constexpr double kHalfPi = 1.57079632679489662;
-            if (!std::isfinite(inner) || !std::isfinite(outer) || inner < 0 || inner > outer ||
-                outer > kHalfPi) {
-                fail(ErrorCode::OutOfRange,
-                     field + ".spot: need 0 <= innerConeAngle <= outerConeAngle <= pi/2 (got " +
-                         std::to_string(inner) + ", " + std::to_string(outer) + ")");
-            }
-            light.innerConeCos = static_cast<float>(std::cos(inner));
-            light.outerConeCos = static_cast<float>(std::cos(outer));
+    // The cone angles, 0 <= inner <= outer <= pi/2, as cosines.
+    void setSpotCones(PunctualLight& light, const tinygltf::Light& source,
+                      const std::string& field) const {
+        const double inner = source.spot.innerConeAngle;
+        const double outer = source.spot.outerConeAngle;
+        constexpr double kHalfPi = 1.57079632679489662;
+        if (!std::isfinite(inner) || !std::isfinite(outer) || inner < 0 || inner > outer ||
+            outer > kHalfPi) {
+            fail(ErrorCode::OutOfRange,
+                 field + ".spot: need 0 <= innerConeAngle <= outerConeAngle <= pi/2 (got " +
+                     std::to_string(inner) + ", " + std::to_string(outer) + ")");
         }
+        light.innerConeCos = static_cast<float>(std::cos(inner));
+        light.outerConeCos = static_cast<float>(std::cos(outer));
+    }
 
+    // Position and direction from the node's world matrix; false (with a warning) when the
+    // transform collapses a spot or directional light's direction.
+    bool placeLight(PunctualLight& light, const glm::dmat4& world, const std::string& node_field,
+                    int light_index) {
         light.position = glm::vec3(world[3]);
         if (!isFinite(glm::dvec3(light.position))) {
             fail(ErrorCode::NonFinite,
@@ -1328,13 +1378,11 @@ private:
             if (!(length > 1e-12) || !std::isfinite(length)) {
                 warn(node_field + ": the node's transform collapses the light direction; light " +
                      std::to_string(light_index) + " is skipped");
-                return;
+                return false;
             }
             light.direction = glm::vec3(direction / length);
         }
-        m_scene.lights.push_back(std::move(light));
-        m_scene.gltfLights.push_back(
-            GltfLight{light_index, glm::vec3(colour), static_cast<float>(source.intensity)});
+        return true;
     }
 
     const tinygltf::Model& m_model;
@@ -1346,6 +1394,80 @@ private:
     std::vector<bool> m_node_has_triangles; // per Scene::nodes entry
     int m_default_material = -1;
 };
+
+} // namespace
+
+namespace {
+
+// The GLB magic decides, whatever the extension; a .glb without it is reported as such by the
+// container check.
+bool isBinaryGltf(std::span<const uint8_t> bytes, const std::filesystem::path& name) {
+    const bool has_magic = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
+    std::string extension = name.extension().string();
+    std::transform(extension.begin(), extension.end(), extension.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return has_magic || extension == ".glb";
+}
+
+// Checks the JSON document before tinygltf sees it: nesting, the parsed size against the
+// budget (charged), syntax, and every field gltf_input checks. Throws LoadError.
+void checkJsonDocument(std::span<const uint8_t> text, uint64_t text_offset, const std::string& file,
+                       const gltf::GlbChunks* glb, const gltf::AssetFolder& folder,
+                       MemoryBudget& budget) {
+    const uint64_t values = gltf::checkJsonNesting(text, text_offset, file);
+    // Two parses hold the document (the check's, then tinygltf's with its Values); the first is
+    // gone before the second, and some of tinygltf's stays in the model.
+    const uint64_t document_bytes =
+        values > UINT64_MAX / gltf::kJsonValueBytes ? UINT64_MAX : values * gltf::kJsonValueBytes;
+    if (!budget.fits(document_bytes)) {
+        throw LoadError{
+            ErrorCode::OutOfRange,
+            file + ": " +
+                budget.refusal("the JSON document (" + std::to_string(values) + " values, parsed)",
+                               document_bytes)};
+    }
+    budget.add(document_bytes);
+    nlohmann::json document;
+    try {
+        document = nlohmann::json::parse(text.begin(), text.end());
+    } catch (const nlohmann::json::exception& e) {
+        throw LoadError{ErrorCode::InvalidArgument,
+                        file + ": not valid JSON: " + std::string(e.what())};
+    }
+    gltf::checkDocument(document, file, glb, folder, budget);
+}
+
+// tinygltf's parse of the checked file, its buffers and images read through the folder rule and
+// the budget; `warning` receives tinygltf's warnings. Throws LoadError.
+tinygltf::Model parseModel(std::span<const uint8_t> bytes, std::span<const uint8_t> text,
+                           bool binary, const gltf::AssetFolder& folder, MemoryBudget& budget,
+                           const std::string& file, std::string& warning) {
+    tinygltf::TinyGLTF parser;
+    gltf::IoContext io{folder, budget, file, std::nullopt};
+    gltf::installIoCallbacks(parser, io);
+    tinygltf::Model model;
+    std::string error;
+    const bool parsed =
+        binary ? parser.LoadBinaryFromMemory(&model, &error, &warning, bytes.data(),
+                                             static_cast<unsigned int>(bytes.size()), folder.base())
+               : parser.LoadASCIIFromString(&model, &error, &warning,
+                                            reinterpret_cast<const char*>(text.data()),
+                                            static_cast<unsigned int>(text.size()), folder.base());
+    if (io.refusal) {
+        // A file the rule refused, or an image refused before decoding: say why, rather
+        // than tinygltf's "File not found" or nothing (it only warns about images).
+        throw *io.refusal;
+    }
+    if (!parsed) {
+        std::string message = trimmed(error);
+        if (!trimmed(warning).empty()) {
+            message += (message.empty() ? "" : "; ") + trimmed(warning);
+        }
+        throw LoadError{ErrorCode::InvalidArgument,
+                        file + ": " + (message.empty() ? "tinygltf failed" : message)};
+    }
+    return model;
+}
 
 } // namespace
 
@@ -1368,15 +1490,7 @@ Result<Scene> loadGltfBytes(std::span<const uint8_t> bytes, const std::filesyste
                                                 folder.unresolvedRoots().front() +
                                                 "' is not an existing folder");
         }
-
-        // The GLB magic decides, whatever the extension; a .glb without it is reported as such
-        // by the container check.
-        const bool has_magic = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
-        std::string extension = name.extension().string();
-        std::transform(extension.begin(), extension.end(), extension.begin(),
-                       [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-        const bool binary = has_magic || extension == ".glb";
-
+        const bool binary = isBinaryGltf(bytes, name);
         gltf::GlbChunks glb;
         std::span<const uint8_t> text = bytes;
         uint64_t text_offset = 0;
@@ -1385,58 +1499,10 @@ Result<Scene> loadGltfBytes(std::span<const uint8_t> bytes, const std::filesyste
             text = glb.json;
             text_offset = glb.jsonOffset;
         }
-        const uint64_t values = gltf::checkJsonNesting(text, text_offset, file);
-        // Two parses hold the document (the check's, then tinygltf's with its Values); the
-        // first is gone before the second, and some of tinygltf's stays in the model.
-        const uint64_t document_bytes = values > UINT64_MAX / gltf::kJsonValueBytes
-                                            ? UINT64_MAX
-                                            : values * gltf::kJsonValueBytes;
-        if (!budget.fits(document_bytes)) {
-            return makeError(ErrorCode::OutOfRange,
-                             file + ": " +
-                                 budget.refusal("the JSON document (" + std::to_string(values) +
-                                                    " values, parsed)",
-                                                document_bytes));
-        }
-        budget.add(document_bytes);
-        {
-            nlohmann::json document;
-            try {
-                document = nlohmann::json::parse(text.begin(), text.end());
-            } catch (const nlohmann::json::exception& e) {
-                return makeError(ErrorCode::InvalidArgument,
-                                 file + ": not valid JSON: " + std::string(e.what()));
-            }
-            gltf::checkDocument(document, file, binary ? &glb : nullptr, folder, budget);
-        }
-
-        tinygltf::TinyGLTF parser;
-        gltf::IoContext io{folder, budget, file, std::nullopt};
-        gltf::installIoCallbacks(parser, io);
-        tinygltf::Model model;
-        std::string error;
+        checkJsonDocument(text, text_offset, file, binary ? &glb : nullptr, folder, budget);
         std::string warning;
-        const bool parsed =
-            binary
-                ? parser.LoadBinaryFromMemory(&model, &error, &warning, bytes.data(),
-                                              static_cast<unsigned int>(bytes.size()),
-                                              folder.base())
-                : parser.LoadASCIIFromString(&model, &error, &warning,
-                                             reinterpret_cast<const char*>(text.data()),
-                                             static_cast<unsigned int>(text.size()), folder.base());
-        if (io.refusal) {
-            // A file the rule refused, or an image refused before decoding: say why, rather
-            // than tinygltf's "File not found" or nothing (it only warns about images).
-            throw *io.refusal;
-        }
-        if (!parsed) {
-            std::string message = trimmed(error);
-            if (!trimmed(warning).empty()) {
-                message += (message.empty() ? "" : "; ") + trimmed(warning);
-            }
-            return makeError(ErrorCode::InvalidArgument,
-                             file + ": " + (message.empty() ? "tinygltf failed" : message));
-        }
+        const tinygltf::Model model =
+            parseModel(bytes, text, binary, folder, budget, file, warning);
         GltfLoader loader(model, file, budget);
         Result<Scene> scene = loader.load(options.sceneIndex, xxhash64(bytes), warning);
         if (scene) {
