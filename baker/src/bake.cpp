@@ -15,21 +15,21 @@
 #include <glm/gtc/matrix_access.hpp>
 #include <glm/gtc/quaternion.hpp>
 
-#include "bricked.hpp"
-#include "coordinate_range.hpp"
-#include "dering.hpp"
-#include "lpv_method.hpp"
 #include "memory_model.hpp"
-#include "parallel.hpp"
-#include "path_integrator.hpp"
+#include "methods/lpv_method.hpp"
+#include "methods/path_integrator.hpp"
+#include "methods/vpl_gather.hpp"
+#include "methods/vpl_integrator.hpp"
+#include "methods/vpl_paths.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/scene_summary.hpp"
 #include "probekit/baker/settings.hpp"
-#include "ray_tracer.hpp"
-#include "visibility.hpp"
-#include "vpl_gather.hpp"
-#include "vpl_integrator.hpp"
-#include "vpl_paths.hpp"
+#include "scene/coordinate_range.hpp"
+#include "trace/parallel.hpp"
+#include "trace/ray_tracer.hpp"
+#include "volume/bricked.hpp"
+#include "volume/dering.hpp"
+#include "volume/visibility.hpp"
 
 namespace probekit::baker {
 namespace {

@@ -11,11 +11,11 @@
 #include <malloc.h>
 #endif
 
-#include "bricked.hpp"
-#include "lpv.hpp"
-#include "lpv_method.hpp"
-#include "vpl_gather.hpp"
-#include "vpl_paths.hpp"
+#include "methods/lpv.hpp"
+#include "methods/lpv_method.hpp"
+#include "methods/vpl_gather.hpp"
+#include "methods/vpl_paths.hpp"
+#include "volume/bricked.hpp"
 
 namespace probekit::baker {
 

@@ -6,7 +6,7 @@
 
 #include <glm/geometric.hpp>
 
-#include "vpl_paths.hpp"
+#include "methods/vpl_paths.hpp"
 
 namespace probekit::baker {
 namespace {

@@ -6,12 +6,12 @@
 #include <cmath>
 #include <cstdio>
 
-#include "irradiance_error.hpp"
-#include "parallel.hpp"
-#include "path_integrator.hpp"
+#include "methods/irradiance_error.hpp"
+#include "methods/path_integrator.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/target.hpp"
-#include "ray_tracer.hpp"
+#include "trace/parallel.hpp"
+#include "trace/ray_tracer.hpp"
 
 namespace probekit::baker {
 namespace {

@@ -29,14 +29,14 @@
 #include <gtest/gtest.h>
 
 #include "bake_test_support.hpp"
-#include "bricked.hpp"
+#include "volume/bricked.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/generators.hpp"
 #include "probekit/baker/target.hpp"
 #include "probekit/formats/brick.hpp"
 #include "probekit/formats/pvol.hpp"
 #include "probekit/runtime/sampler.hpp"
-#include "ray_tracer.hpp"
+#include "trace/ray_tracer.hpp"
 
 using namespace probekit;
 using namespace probekit::baker;

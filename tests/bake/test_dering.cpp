@@ -1,4 +1,4 @@
-// Deringing in the bake (BakeConfig::dering, baker/src/dering.hpp): every stored probe of every
+// Deringing in the bake (BakeConfig::dering, baker/src/volume/dering.hpp): every stored probe of every
 // method, layout, SH order and storage has E >= 0 for every normal, checked on the coefficients
 // as stored (half decoded) with the exact minimum of sh.hpp and a dense set of normals in float
 // as the runtime evaluates them; the same bakes with deringing off have negative probes, so the

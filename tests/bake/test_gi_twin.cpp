@@ -1,5 +1,5 @@
 // The dynamic GI's CPU twin (runtime/src/gi_twin.hpp) against the offline LPV it rebuilds
-// (baker/src/lpv.hpp) and against the path reference: the same transport on the same grid, the
+// (baker/src/methods/lpv.hpp) and against the path reference: the same transport on the same grid, the
 // relit cascade after a sun move, and how far the runtime's light is from the path method's.
 #include <cmath>
 #include <cstdio>
@@ -9,11 +9,11 @@
 
 #include "bake_test_support.hpp"
 #include "gi_twin.hpp"
-#include "lpv.hpp"
-#include "lpv_method.hpp"
-#include "path_integrator.hpp"
+#include "methods/lpv.hpp"
+#include "methods/lpv_method.hpp"
+#include "methods/path_integrator.hpp"
 #include "probekit/baker/generators.hpp"
-#include "ray_tracer.hpp"
+#include "trace/ray_tracer.hpp"
 
 using namespace probekit;
 using namespace probekit::baker;

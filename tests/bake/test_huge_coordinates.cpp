@@ -1,4 +1,4 @@
-// Coordinates beyond what float32 tracing can do (baker/src/coordinate_range.hpp): the bake
+// Coordinates beyond what float32 tracing can do (baker/src/scene/coordinate_range.hpp): the bake
 // refuses them with an error naming the file and what is out of range, before anything is
 // traced, and no ray reaches Embree outside what it accepts.
 #include <algorithm>
@@ -9,9 +9,9 @@
 #include <gtest/gtest.h>
 
 #include "bake_test_support.hpp"
-#include "coordinate_range.hpp"
+#include "scene/coordinate_range.hpp"
 #include "probekit/baker/target.hpp"
-#include "ray_tracer.hpp"
+#include "trace/ray_tracer.hpp"
 
 namespace probekit::baker {
 namespace {

@@ -8,12 +8,12 @@
 #include <gtest/gtest.h>
 
 #include "bake_test_support.hpp"
-#include "lpv.hpp"
-#include "lpv_method.hpp"
+#include "methods/lpv.hpp"
+#include "methods/lpv_method.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/generators.hpp"
 #include "probekit/formats/pvol.hpp"
-#include "ray_tracer.hpp"
+#include "trace/ray_tracer.hpp"
 
 using namespace probekit;
 using namespace probekit::baker;

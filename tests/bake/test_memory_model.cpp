@@ -10,12 +10,12 @@
 #include <gtest/gtest.h>
 
 #include "bake_test_support.hpp"
-#include "bricked.hpp"
+#include "volume/bricked.hpp"
 #include "memory_model.hpp"
 #include "probekit/baker/settings.hpp"
-#include "ray_tracer.hpp"
-#include "rng.hpp"
-#include "vpl_gather.hpp"
+#include "trace/ray_tracer.hpp"
+#include "trace/rng.hpp"
+#include "methods/vpl_gather.hpp"
 
 namespace probekit::baker {
 namespace {

@@ -1,4 +1,4 @@
-// Tests of the baker's parallel loop (baker/src/parallel.hpp) and of the bake's progress
+// Tests of the baker's parallel loop (baker/src/trace/parallel.hpp) and of the bake's progress
 // reports, which run on the calling thread while the loop's threads bake (BakeOptions::progress).
 #include <atomic>
 #include <chrono>
@@ -8,7 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "bake_test_support.hpp"
-#include "parallel.hpp"
+#include "trace/parallel.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/formats/pvol.hpp"
 

@@ -35,14 +35,14 @@
 
 #include <glm/geometric.hpp>
 
-#include "irradiance_error.hpp"
-#include "light_sampler.hpp"
-#include "path_integrator.hpp"
+#include "methods/irradiance_error.hpp"
+#include "trace/light_sampler.hpp"
+#include "methods/path_integrator.hpp"
 #include "probekit/baker/bench_rays.hpp"
 #include "probekit/baker/scene.hpp"
 #include "probekit/formats/sh.hpp"
-#include "ray_tracer.hpp"
-#include "rng.hpp"
+#include "trace/ray_tracer.hpp"
+#include "trace/rng.hpp"
 
 namespace probekit::baker {
 namespace {

@@ -33,9 +33,9 @@
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/generators.hpp"
 #include "probekit/formats/sh.hpp"
-#include "ray_tracer.hpp"
-#include "vpl_gather.hpp"
-#include "vpl_paths.hpp"
+#include "trace/ray_tracer.hpp"
+#include "methods/vpl_gather.hpp"
+#include "methods/vpl_paths.hpp"
 
 namespace probekit::baker {
 namespace {

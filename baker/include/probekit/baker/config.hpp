@@ -164,7 +164,7 @@ struct VplConfig {
 // Propagation Volumes for Real-Time Indirect Illumination", I3D 2010). The VPLs of the vpl
 // method are injected into nested grids of L1 SH cells, light flows from cell to cell with
 // occlusion from the scene's geometry, and every probe takes the interpolated result:
-// the fastest, coarsest method. baker/src/lpv.hpp documents the transport and its units.
+// the fastest, coarsest method. baker/src/methods/lpv.hpp documents the transport and its units.
 enum class LpvDirect : uint8_t {
     Traced,     // direct light at the probes from the lights, as the other methods compute it
     Propagated, // the lights are injected too, and the grid carries direct light as well
@@ -216,8 +216,8 @@ struct BakeConfig {
     // spacing, instead of being dilated.
     bool nudge = true;
     // Dense volumes: a probe inside geometry is baked at the nearest free point within one cell
-    // instead (virtual offset; baker/src/visibility.hpp), and lights the surfaces of the solid
-    // it sits in (docs/accuracy.md#surface-accuracy).
+    // instead (virtual offset; baker/src/volume/visibility.hpp), and lights the surfaces of the
+    // solid it sits in (docs/accuracy.md#surface-accuracy).
     bool relocate = true;
     // Store per-probe occluder distances (formats/.../visibility.hpp) so that interpolation
     // between probes does not carry light through walls; 54 rays per probe.

@@ -1,5 +1,5 @@
 // probekit::lpv — the light propagation volume transport shared by the baker's offline LPV
-// (baker/src/lpv.hpp, where the file comment derives it) and the runtime's dynamic GI
+// (baker/src/methods/lpv.hpp, where the file comment derives it) and the runtime's dynamic GI
 // (runtime/src/gi_twin.hpp, the CPU twin of its compute shaders): the neighbour directions,
 // the L1 basis, the five faces a transfer reaches, and radiance from one-sided irradiances.
 // shaders/gi_common.glsl holds the same numbers for the GPU.
