@@ -1,9 +1,9 @@
 // probekit::runtime — the dynamic GI's geometry volume, CPU twin (docs/runtime.md#dynamic-gi).
 //
 // A cascade is a cube of `cells` cells of side `cellSize` from `origin`. Its geometry volume is
-// offset by half a cell, as the offline LPV's (baker/src/methods/lpv.hpp, "Geometry volume"): cells + 1
-// per axis, centred on the LPV cell corners, so every face between two LPV cells lies on a plane
-// of geometry-cell centres. Each geometry cell holds, summed over the surface inside it:
+// offset by half a cell, as the offline LPV's (baker/src/methods/lpv.hpp, "Geometry volume"): cells
+// + 1 per axis, centred on the LPV cell corners, so every face between two LPV cells lies on a
+// plane of geometry-cell centres. Each geometry cell holds, summed over the surface inside it:
 //  * blocking: bands 0 and 2 of A (n.w)^2 / s^2 (6 numbers: Y00 and the five band-2
 //    coefficients; band 1 is zero since the function is even), the probability that light
 //    crossing the cell along w meets the surface, as offline;

@@ -1,10 +1,10 @@
 // probekit::runtime — the dynamic GI's CPU twin: the specification and test oracle of every
 // compute shader DynamicGi records (shaders/gi_*.comp), stage by stage, on the same buffers in
 // the same layouts. docs/runtime.md#dynamic-gi says how the stages fit together; the transport is
-// the offline LPV's (baker/src/methods/lpv.hpp: injection as a cosine lobe half a cell along the normal,
-// the five-face transfer with geometry blocking, the flux-conserving negative clamp, radiance
-// from accumulated face crossings), rebuilt here on plain arrays because the runtime may not
-// depend on the baker.
+// the offline LPV's (baker/src/methods/lpv.hpp: injection as a cosine lobe half a cell along the
+// normal, the five-face transfer with geometry blocking, the flux-conserving negative clamp,
+// radiance from accumulated face crossings), rebuilt here on plain arrays because the runtime may
+// not depend on the baker.
 //
 // Per cascade (a cube of n^3 LPV cells of side s; its geometry volume (n + 1)^3, gi_geometry.hpp):
 //

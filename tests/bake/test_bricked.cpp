@@ -29,7 +29,6 @@
 #include <gtest/gtest.h>
 
 #include "bake_test_support.hpp"
-#include "volume/bricked.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/generators.hpp"
 #include "probekit/baker/target.hpp"
@@ -37,6 +36,7 @@
 #include "probekit/formats/pvol.hpp"
 #include "probekit/runtime/sampler.hpp"
 #include "trace/ray_tracer.hpp"
+#include "volume/bricked.hpp"
 
 using namespace probekit;
 using namespace probekit::baker;

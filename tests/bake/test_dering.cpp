@@ -1,9 +1,10 @@
-// Deringing in the bake (BakeConfig::dering, baker/src/volume/dering.hpp): every stored probe of every
-// method, layout, SH order and storage has E >= 0 for every normal, checked on the coefficients
-// as stored (half decoded) with the exact minimum of sh.hpp and a dense set of normals in float
-// as the runtime evaluates them; the same bakes with deringing off have negative probes, so the
-// check can fail. The scene is the generated Cornell box (its emitter is a small bright square
-// under the ceiling) and, for the strongest ringing, the thin-wall rooms' 20 W/sr point light.
+// Deringing in the bake (BakeConfig::dering, baker/src/volume/dering.hpp): every stored probe of
+// every method, layout, SH order and storage has E >= 0 for every normal, checked on the
+// coefficients as stored (half decoded) with the exact minimum of sh.hpp and a dense set of normals
+// in float as the runtime evaluates them; the same bakes with deringing off have negative probes,
+// so the check can fail. The scene is the generated Cornell box (its emitter is a small bright
+// square under the ceiling) and, for the strongest ringing, the thin-wall rooms' 20 W/sr point
+// light.
 #include <algorithm>
 #include <cstdio>
 #include <limits>

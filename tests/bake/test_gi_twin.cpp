@@ -1,6 +1,6 @@
 // The dynamic GI's CPU twin (runtime/src/gi_twin.hpp) against the offline LPV it rebuilds
-// (baker/src/methods/lpv.hpp) and against the path reference: the same transport on the same grid, the
-// relit cascade after a sun move, and how far the runtime's light is from the path method's.
+// (baker/src/methods/lpv.hpp) and against the path reference: the same transport on the same grid,
+// the relit cascade after a sun move, and how far the runtime's light is from the path method's.
 #include <cmath>
 #include <cstdio>
 #include <vector>

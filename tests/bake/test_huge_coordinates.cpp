@@ -9,8 +9,8 @@
 #include <gtest/gtest.h>
 
 #include "bake_test_support.hpp"
-#include "scene/coordinate_range.hpp"
 #include "probekit/baker/target.hpp"
+#include "scene/coordinate_range.hpp"
 #include "trace/ray_tracer.hpp"
 
 namespace probekit::baker {

@@ -10,12 +10,12 @@
 #include <gtest/gtest.h>
 
 #include "bake_test_support.hpp"
-#include "volume/bricked.hpp"
 #include "memory_model.hpp"
+#include "methods/vpl_gather.hpp"
 #include "probekit/baker/settings.hpp"
 #include "trace/ray_tracer.hpp"
 #include "trace/rng.hpp"
-#include "methods/vpl_gather.hpp"
+#include "volume/bricked.hpp"
 
 namespace probekit::baker {
 namespace {

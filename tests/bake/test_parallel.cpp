@@ -8,9 +8,9 @@
 #include <gtest/gtest.h>
 
 #include "bake_test_support.hpp"
-#include "trace/parallel.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/formats/pvol.hpp"
+#include "trace/parallel.hpp"
 
 using namespace probekit;
 using namespace probekit::baker;

@@ -36,11 +36,11 @@
 #include <glm/geometric.hpp>
 
 #include "methods/irradiance_error.hpp"
-#include "trace/light_sampler.hpp"
 #include "methods/path_integrator.hpp"
 #include "probekit/baker/bench_rays.hpp"
 #include "probekit/baker/scene.hpp"
 #include "probekit/formats/sh.hpp"
+#include "trace/light_sampler.hpp"
 #include "trace/ray_tracer.hpp"
 #include "trace/rng.hpp"
 

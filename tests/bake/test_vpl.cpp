@@ -30,12 +30,12 @@
 #include <glm/vector_relational.hpp>
 
 #include "bake_test_support.hpp"
+#include "methods/vpl_gather.hpp"
+#include "methods/vpl_paths.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/generators.hpp"
 #include "probekit/formats/sh.hpp"
 #include "trace/ray_tracer.hpp"
-#include "methods/vpl_gather.hpp"
-#include "methods/vpl_paths.hpp"
 
 namespace probekit::baker {
 namespace {

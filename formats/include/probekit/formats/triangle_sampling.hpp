@@ -1,6 +1,6 @@
 // probekit::formats — deterministic area samples of a triangle inside a box, shared by the
-// baker's offline LPV geometry volume (baker/src/methods/lpv.cpp) and the runtime's dynamic GI geometry
-// volume (runtime/src/gi_geometry.cpp), whose compute shader follows the same arithmetic.
+// baker's offline LPV geometry volume (baker/src/methods/lpv.cpp) and the runtime's dynamic GI
+// geometry volume (runtime/src/gi_geometry.cpp), whose compute shader follows the same arithmetic.
 #pragma once
 
 #include <algorithm>

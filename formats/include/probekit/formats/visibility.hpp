@@ -7,9 +7,9 @@
 // probe's own spacing along that axis (a dense grid's spacing; a brick's probe spacing at its
 // level), quantised as q = round(clamp(d, 0, 1) * 255). q = 255 means no surface within one
 // cell: every point the probe is interpolated to is clear along that axis. The baker
-// (baker/src/volume/visibility.cpp) takes the median of a small bundle of rays around each half-axis,
-// projected onto it, so a planar wall across the axis gives its exact distance and a thin
-// obstacle seen by few rays of the bundle does not hide the probe.
+// (baker/src/volume/visibility.cpp) takes the median of a small bundle of rays around each
+// half-axis, projected onto it, so a planar wall across the axis gives its exact distance and a
+// thin obstacle seen by few rays of the bundle does not hide the probe.
 //
 // Runtime weight of probe i at a sample point (sampler.hpp, shaders/probe_volume.glsl):
 //   offset o = (sample grid coordinate) - (probe grid coordinate), |o| <= 1 per axis (the point
