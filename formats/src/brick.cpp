@@ -152,31 +152,25 @@ sh::ShRgb interpolate(std::span<const sh::ShRgb> brick_probes, glm::vec3 local,
     return out;
 }
 
-void stitchBorders(glm::uvec3 top_bricks, const BrickLayout& layout,
-                   std::span<const uint32_t> indirection, std::span<sh::ShRgb> probes,
-                   std::span<const uint8_t> visibility) {
-    // Always on (ARCHITECTURE.md, "Preconditions"): every loop below indexes the indirection,
-    // the per-level tables and the probe and visibility spans with these sizes, levels and
-    // brick indices, unchecked. Linear in the cells, far below the stitching itself.
-    PK_CHECK(layout.maxLevel <= kMaxLevel);
-    const glm::uvec3 cells = finestCells(top_bricks, layout.maxLevel);
-    PK_CHECK(indirection.size() == size_t(cells.x) * cells.y * cells.z);
-    PK_CHECK(probes.size() == layout.bricks.size() * kBrickProbeCount);
-    PK_CHECK(visibility.empty() || visibility.size() == probes.size() * visibility::kBytesPerProbe);
-    const bool levels_within_max_level =
-        std::all_of(layout.bricks.begin(), layout.bricks.end(),
-                    [&layout](const Brick& b) { return b.level <= layout.maxLevel; });
-    PK_CHECK(levels_within_max_level);
-    const bool indirection_names_listed_bricks =
-        std::all_of(indirection.begin(), indirection.end(),
-                    [&layout](uint32_t b) { return b < layout.bricks.size(); });
-    PK_CHECK(indirection_names_listed_bricks);
-    const auto precedes = [&](uint32_t a, uint32_t b) {
+namespace {
+
+constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+
+// The order bricks are stitched in: ascending level, then index.
+struct StitchOrder {
+    const BrickLayout& layout;
+    bool operator()(uint32_t a, uint32_t b) const {
         const uint8_t level_a = layout.bricks[a].level, level_b = layout.bricks[b].level;
         return level_a < level_b || (level_a == level_b && a < b);
-    };
-    // Per level l and level-l region: the first brick (by `precedes`) that shows anywhere in it.
-    constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+    }
+};
+
+// Per level l and level-l region: the first brick (by `precedes`) that shows anywhere in it.
+std::vector<std::vector<uint32_t>> firstShownPerLevel(glm::uvec3 top_bricks,
+                                                      const BrickLayout& layout,
+                                                      std::span<const uint32_t> indirection,
+                                                      StitchOrder precedes) {
+    const glm::uvec3 cells = finestCells(top_bricks, layout.maxLevel);
     std::vector<std::vector<uint32_t>> first_shown(layout.maxLevel + 1);
     for (uint32_t l = 0; l <= layout.maxLevel; ++l) {
         const glm::uvec3 regions = top_bricks * (1u << l);
@@ -198,59 +192,109 @@ void stitchBorders(glm::uvec3 top_bricks, const BrickLayout& layout,
             }
         }
     }
+    return first_shown;
+}
+
+// The brick a point at `lattice` of brick `self` takes its value from: the first (by
+// `precedes`) shown in the regions of self's level around it (`first`: firstShownPerLevel's
+// table for that level), self when none precedes it.
+uint32_t stitchSource(const std::vector<uint32_t>& first, glm::uvec3 regions,
+                      uint32_t region_points, glm::uvec3 lattice, uint32_t self,
+                      StitchOrder precedes) {
+    // The regions of the brick's level around the point (on a region border along an axis,
+    // those on both sides).
+    glm::uvec3 lo, hi;
+    for (int a = 0; a < 3; ++a) {
+        const uint32_t region = lattice[a] / region_points;
+        const bool on_border = lattice[a] % region_points == 0;
+        lo[a] = on_border && region > 0 ? region - 1 : region;
+        hi[a] = std::min(region, regions[a] - 1);
+    }
+    uint32_t source = self;
+    for (uint32_t z = lo.z; z <= hi.z; ++z) {
+        for (uint32_t y = lo.y; y <= hi.y; ++y) {
+            for (uint32_t x = lo.x; x <= hi.x; ++x) {
+                const uint32_t other = first[x + size_t(regions.x) * (y + size_t(regions.y) * z)];
+                if (precedes(other, source)) {
+                    source = other;
+                }
+            }
+        }
+    }
+    return source;
+}
+
+// Brick `source`'s value at the point `lattice` (weighted by its visibility, when given).
+sh::ShRgb sampleBrickAt(const BrickLayout& layout, uint32_t source, glm::uvec3 lattice,
+                        std::span<const sh::ShRgb> probes, std::span<const uint8_t> visibility) {
+    const Brick& from = layout.bricks[source];
+    // Powers of two: the division is exact in float.
+    const uint32_t step = 1u << (layout.maxLevel - from.level);
+    const glm::vec3 from_local =
+        (glm::vec3(lattice) - glm::vec3(from.coord * (kBrickCells * step))) / float(step);
+    constexpr size_t kBrickVisibility = kBrickProbeCount * visibility::kBytesPerProbe;
+    return interpolate(
+        probes.subspan(size_t(source) * kBrickProbeCount, kBrickProbeCount), from_local,
+        visibility.empty() ? visibility
+                           : visibility.subspan(source * kBrickVisibility, kBrickVisibility));
+}
+
+// Replaces the face probes of brick `self` by the values of the bricks that precede it there.
+void stitchBrick(glm::uvec3 top_bricks, const BrickLayout& layout,
+                 const std::vector<std::vector<uint32_t>>& first_shown, uint32_t self,
+                 std::span<sh::ShRgb> probes, std::span<const uint8_t> visibility) {
+    const StitchOrder precedes{layout};
+    const auto on_face = [](uint32_t i) { return i == 0 || i == kBrickCells; };
+    const Brick& own = layout.bricks[self];
+    const glm::uvec3 regions = top_bricks * (1u << own.level);
+    const uint32_t region_points = kBrickCells << (layout.maxLevel - own.level);
+    const std::vector<uint32_t>& first = first_shown[own.level];
+    for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
+        const glm::uvec3 local(k % kBrickSize, (k / kBrickSize) % kBrickSize,
+                               k / (kBrickSize * kBrickSize));
+        if (!on_face(local.x) && !on_face(local.y) && !on_face(local.z)) {
+            continue;
+        }
+        const glm::uvec3 lattice = latticeCoord(own, local, layout.maxLevel);
+        const uint32_t source =
+            stitchSource(first, regions, region_points, lattice, self, precedes);
+        if (source != self) {
+            probes[size_t(self) * kBrickProbeCount + k] =
+                sampleBrickAt(layout, source, lattice, probes, visibility);
+        }
+    }
+}
+
+} // namespace
+
+void stitchBorders(glm::uvec3 top_bricks, const BrickLayout& layout,
+                   std::span<const uint32_t> indirection, std::span<sh::ShRgb> probes,
+                   std::span<const uint8_t> visibility) {
+    // Always on (ARCHITECTURE.md, "Preconditions"): every loop below indexes the indirection,
+    // the per-level tables and the probe and visibility spans with these sizes, levels and
+    // brick indices, unchecked. Linear in the cells, far below the stitching itself.
+    PK_CHECK(layout.maxLevel <= kMaxLevel);
+    const glm::uvec3 cells = finestCells(top_bricks, layout.maxLevel);
+    PK_CHECK(indirection.size() == size_t(cells.x) * cells.y * cells.z);
+    PK_CHECK(probes.size() == layout.bricks.size() * kBrickProbeCount);
+    PK_CHECK(visibility.empty() || visibility.size() == probes.size() * visibility::kBytesPerProbe);
+    const bool levels_within_max_level =
+        std::all_of(layout.bricks.begin(), layout.bricks.end(),
+                    [&layout](const Brick& b) { return b.level <= layout.maxLevel; });
+    PK_CHECK(levels_within_max_level);
+    const bool indirection_names_listed_bricks =
+        std::all_of(indirection.begin(), indirection.end(),
+                    [&layout](uint32_t b) { return b < layout.bricks.size(); });
+    PK_CHECK(indirection_names_listed_bricks);
+    const StitchOrder precedes{layout};
+    const std::vector<std::vector<uint32_t>> first_shown =
+        firstShownPerLevel(top_bricks, layout, indirection, precedes);
     // Ascending level, then index: every brick a probe may be replaced from is final by then.
     std::vector<uint32_t> order(layout.bricks.size());
     std::iota(order.begin(), order.end(), 0u);
     std::sort(order.begin(), order.end(), precedes);
-    const auto on_face = [](uint32_t i) { return i == 0 || i == kBrickCells; };
     for (const uint32_t self : order) {
-        const Brick& own = layout.bricks[self];
-        const glm::uvec3 regions = top_bricks * (1u << own.level);
-        const uint32_t region_points = kBrickCells << (layout.maxLevel - own.level);
-        const std::vector<uint32_t>& first = first_shown[own.level];
-        for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
-            const glm::uvec3 local(k % kBrickSize, (k / kBrickSize) % kBrickSize,
-                                   k / (kBrickSize * kBrickSize));
-            if (!on_face(local.x) && !on_face(local.y) && !on_face(local.z)) {
-                continue;
-            }
-            // The regions of the brick's level around the point (on a region border along an
-            // axis, those on both sides).
-            const glm::uvec3 lattice = latticeCoord(own, local, layout.maxLevel);
-            glm::uvec3 lo, hi;
-            for (int a = 0; a < 3; ++a) {
-                const uint32_t region = lattice[a] / region_points;
-                const bool on_border = lattice[a] % region_points == 0;
-                lo[a] = on_border && region > 0 ? region - 1 : region;
-                hi[a] = std::min(region, regions[a] - 1);
-            }
-            uint32_t source = self;
-            for (uint32_t z = lo.z; z <= hi.z; ++z) {
-                for (uint32_t y = lo.y; y <= hi.y; ++y) {
-                    for (uint32_t x = lo.x; x <= hi.x; ++x) {
-                        const uint32_t other =
-                            first[x + size_t(regions.x) * (y + size_t(regions.y) * z)];
-                        if (precedes(other, source)) {
-                            source = other;
-                        }
-                    }
-                }
-            }
-            if (source == self) {
-                continue;
-            }
-            const Brick& from = layout.bricks[source];
-            // Powers of two: the division is exact in float.
-            const uint32_t step = 1u << (layout.maxLevel - from.level);
-            const glm::vec3 from_local =
-                (glm::vec3(lattice) - glm::vec3(from.coord * (kBrickCells * step))) / float(step);
-            constexpr size_t kBrickVisibility = kBrickProbeCount * visibility::kBytesPerProbe;
-            probes[size_t(self) * kBrickProbeCount + k] = interpolate(
-                probes.subspan(size_t(source) * kBrickProbeCount, kBrickProbeCount), from_local,
-                visibility.empty()
-                    ? visibility
-                    : visibility.subspan(source * kBrickVisibility, kBrickVisibility));
-        }
+        stitchBrick(top_bricks, layout, first_shown, self, probes, visibility);
     }
 }
 

@@ -396,102 +396,155 @@ private:
         return text;
     }
 
+    // The fields of a volume's header that are checked together once all are read.
+    struct RawVolumeFields {
+        grid::Aabb bounds;
+        glm::uvec3 resolution{};
+        uint8_t mode = 0;
+        grid::RigidFrame frame;
+        uint8_t order = 0;
+        uint8_t storage = 0;
+    };
+
     Volume readVolume(std::string& context) {
+        Volume volume;
+        VolumeDesc& desc = volume.desc;
+        desc.layout = readLayout(context);
+        desc.name = readString(context, "name");
+        context += " ('" + desc.name + "')";
+
+        const RawVolumeFields raw = readVolumeFields(desc);
+        checkVolumeEnums(raw, desc.layout, context);
+        desc.shOrder = sh::Order(raw.order);
+        desc.storage = Storage(raw.storage);
+        checkVolumeFinite(raw, desc.fadeDistance, context);
+        desc.grid = makeGrid(raw, context);
+        if (desc.layout == VolumeLayout::Bricked) {
+            readBricks(volume, context);
+        }
+
+        readValidity(volume, context);
+        readTexelBlock(volume, context);
+        if (m_version >= 2) {
+            readVisibility(volume, context);
+        }
+
+        // The texel values were checked by readTexels.
+        checkStructure(volume, context);
+        return volume;
+    }
+
+    // Reads the layout byte and checks that it names a known layout.
+    VolumeLayout readLayout(const std::string& context) {
         const uint8_t layout = readValue<uint8_t>();
         if (layout != uint8_t(VolumeLayout::Dense) && layout != uint8_t(VolumeLayout::Bricked)) {
             fail(ErrorCode::BadEnum, context,
                  "layout " + std::to_string(layout) +
                      " is not a known layout (0 = dense, 1 = bricked)");
         }
+        return VolumeLayout(layout);
+    }
 
-        Volume volume;
-        VolumeDesc& desc = volume.desc;
-        desc.layout = VolumeLayout(layout);
-        desc.name = readString(context, "name");
-        context += " ('" + desc.name + "')";
-
-        grid::Aabb bounds;
-        m_archive(bounds.min.x, bounds.min.y, bounds.min.z, bounds.max.x, bounds.max.y,
-                  bounds.max.z);
-        glm::uvec3 resolution;
-        m_archive(resolution.x, resolution.y, resolution.z);
-        const uint8_t mode = readValue<uint8_t>();
-        grid::RigidFrame frame;
-        m_archive(frame.rotation.w, frame.rotation.x, frame.rotation.y, frame.rotation.z);
-        m_archive(frame.translation.x, frame.translation.y, frame.translation.z);
-        const uint8_t order = readValue<uint8_t>();
-        const uint8_t storage = readValue<uint8_t>();
+    // Reads bounds through fade distance, unchecked; priority and fade land in `desc`.
+    RawVolumeFields readVolumeFields(VolumeDesc& desc) {
+        RawVolumeFields raw;
+        m_archive(raw.bounds.min.x, raw.bounds.min.y, raw.bounds.min.z, raw.bounds.max.x,
+                  raw.bounds.max.y, raw.bounds.max.z);
+        m_archive(raw.resolution.x, raw.resolution.y, raw.resolution.z);
+        raw.mode = readValue<uint8_t>();
+        m_archive(raw.frame.rotation.w, raw.frame.rotation.x, raw.frame.rotation.y,
+                  raw.frame.rotation.z);
+        m_archive(raw.frame.translation.x, raw.frame.translation.y, raw.frame.translation.z);
+        raw.order = readValue<uint8_t>();
+        raw.storage = readValue<uint8_t>();
         m_archive(desc.blendPriority, desc.fadeDistance);
+        return raw;
+    }
 
+    // Checks the position mode (center only when bricked), sh order and storage bytes.
+    static void checkVolumeEnums(const RawVolumeFields& raw, VolumeLayout layout,
+                                 const std::string& context) {
+        const uint8_t mode = raw.mode;
         if (mode != uint8_t(grid::PositionMode::Center) &&
             mode != uint8_t(grid::PositionMode::Corner)) {
             fail(ErrorCode::BadEnum, context,
                  "position_mode " + std::to_string(mode) + " is not 0 (center) or 1 (corner)");
         }
         // Checked before the grid: corner placement would fail there on a 1-brick axis.
-        if (desc.layout == VolumeLayout::Bricked && mode != uint8_t(grid::PositionMode::Center)) {
+        if (layout == VolumeLayout::Bricked && mode != uint8_t(grid::PositionMode::Center)) {
             fail(ErrorCode::BadEnum, context,
                  "position_mode " + std::to_string(mode) +
                      " of a bricked volume must be 0 (center)");
         }
-        if (order != uint8_t(sh::Order::L1) && order != uint8_t(sh::Order::L2)) {
+        if (raw.order != uint8_t(sh::Order::L1) && raw.order != uint8_t(sh::Order::L2)) {
             fail(ErrorCode::BadEnum, context,
-                 "sh_order " + std::to_string(order) + " is not 1 (L1) or 2 (L2)");
+                 "sh_order " + std::to_string(raw.order) + " is not 1 (L1) or 2 (L2)");
         }
-        if (storage != uint8_t(Storage::Float32) && storage != uint8_t(Storage::Float16)) {
+        if (raw.storage != uint8_t(Storage::Float32) && raw.storage != uint8_t(Storage::Float16)) {
             fail(ErrorCode::BadEnum, context,
-                 "storage " + std::to_string(storage) + " is not 0 (float) or 1 (half)");
+                 "storage " + std::to_string(raw.storage) + " is not 0 (float) or 1 (half)");
         }
-        desc.shOrder = sh::Order(order);
-        desc.storage = Storage(storage);
+    }
 
+    // Checks bounds, frame and fade distance for finiteness, naming the first bad field.
+    static void checkVolumeFinite(const RawVolumeFields& raw, float fade_distance,
+                                  const std::string& context) {
         // Finiteness is checked here, field by field, so the message can say which one; the
-        // grid factory below then checks resolution, bound ordering and the unit quaternion.
+        // grid factory then checks resolution, bound ordering and the unit quaternion.
         static constexpr const char* kAxes[3] = {"x", "y", "z"};
         for (int axis = 0; axis < 3; ++axis) {
-            if (!std::isfinite(bounds.min[axis]) || !std::isfinite(bounds.max[axis])) {
+            if (!std::isfinite(raw.bounds.min[axis]) || !std::isfinite(raw.bounds.max[axis])) {
                 fail(ErrorCode::NonFinite, context,
                      std::string("bounds.") + kAxes[axis] + " is not finite (min " +
-                         std::to_string(bounds.min[axis]) + ", max " +
-                         std::to_string(bounds.max[axis]) + ")");
+                         std::to_string(raw.bounds.min[axis]) + ", max " +
+                         std::to_string(raw.bounds.max[axis]) + ")");
             }
-            if (!std::isfinite(frame.translation[axis])) {
+            if (!std::isfinite(raw.frame.translation[axis])) {
                 fail(ErrorCode::NonFinite, context,
                      std::string("frame.translation.") + kAxes[axis] + " is not finite");
             }
         }
         for (int i = 0; i < 4; ++i) {
-            if (!std::isfinite(frame.rotation[i])) {
+            if (!std::isfinite(raw.frame.rotation[i])) {
                 fail(ErrorCode::NonFinite, context, "frame.rotation is not finite");
             }
         }
-        if (!std::isfinite(desc.fadeDistance)) {
+        if (!std::isfinite(fade_distance)) {
             fail(ErrorCode::NonFinite, context, "fade_distance is not finite");
         }
-        auto layout_result =
-            grid::GridLayout::make(bounds, resolution, grid::PositionMode(mode), frame);
+    }
+
+    // Builds the grid from the checked fields; the factory's error becomes the failure.
+    static grid::GridLayout makeGrid(const RawVolumeFields& raw, const std::string& context) {
+        auto layout_result = grid::GridLayout::make(raw.bounds, raw.resolution,
+                                                    grid::PositionMode(raw.mode), raw.frame);
         if (!layout_result) {
             fail(layout_result.error().code, context, layout_result.error().message);
         }
-        desc.grid = layout_result.value();
-        if (desc.layout == VolumeLayout::Bricked) {
-            readBricks(volume, context);
-        }
+        return layout_result.value();
+    }
 
+    // Reads the validity block after checking its count against the probe count.
+    void readValidity(Volume& volume, const std::string& context) {
+        const VolumeDesc& desc = volume.desc;
         const size_t probe_count = desc.probeCount();
         const uint64_t validity_count = readValue<uint64_t>();
         if (validity_count != probe_count) {
             fail(ErrorCode::InconsistentSize, context,
                  "validity holds " + std::to_string(validity_count) + " bytes but the " +
                      (desc.layout == VolumeLayout::Dense
-                          ? resolutionText(resolution) + " grid has "
+                          ? resolutionText(desc.grid.resolution()) + " grid has "
                           : std::to_string(desc.bricks.bricks.size()) + " bricks hold ") +
                      std::to_string(probe_count) + " probes");
         }
         requireBytes(validity_count, 1, context, "validity byte count");
         volume.validity.resize(probe_count);
         m_archive(cereal::binary_data(volume.validity.data(), volume.validity.size()));
+    }
 
+    // Reads the texel block in the volume's storage after checking its component count.
+    void readTexelBlock(Volume& volume, const std::string& context) {
+        const size_t probe_count = volume.desc.probeCount();
         const size_t component_count = size_t(volume.planes()) * probe_count * 4;
         const uint64_t texel_count = readValue<uint64_t>();
         if (texel_count != component_count) {
@@ -500,7 +553,7 @@ private:
                      std::to_string(component_count) + " (" + std::to_string(volume.planes()) +
                      " planes x " + std::to_string(probe_count) + " probes x 4)");
         }
-        if (desc.storage == Storage::Float32) {
+        if (volume.desc.storage == Storage::Float32) {
             requireBytes(texel_count, sizeof(float), context, "float texel count");
             volume.texelsF32.resize(component_count);
             readTexels(volume.texelsF32, probe_count, context);
@@ -509,23 +562,20 @@ private:
             volume.texelsF16.resize(component_count);
             readTexels(volume.texelsF16, probe_count, context);
         }
+    }
 
-        if (m_version >= 2) {
-            readVisibility(volume, context);
-        }
-
-        // The texel values were checked by readTexels.
+    // Runs the structural validation, relabelling its messages with this reader's context.
+    static void checkStructure(const Volume& volume, const std::string& context) {
         if (auto valid = detail::validateVolumeStructure(volume); !valid) {
             // validateVolume labels its messages "volume '<name>': "; the context already says
             // that, with the file and the index.
             std::string message = valid.error().message;
-            const std::string own_label = "volume '" + desc.name + "': ";
+            const std::string own_label = "volume '" + volume.desc.name + "': ";
             if (message.starts_with(own_label)) {
                 message.erase(0, own_label.size());
             }
             fail(valid.error().code, context, message);
         }
-        return volume;
     }
 
     // The bricked part of a volume (after its common fields): max level, brick list, then the

@@ -164,31 +164,35 @@ struct SphereMin {
     std::array<double, 3> n{}; // unit point (eigenbasis) where the value is (nearly) taken
 };
 
-// min over |n| = 1 of sum_i d_i n_i^2 + g_i n_i, d ascending, through the dual (sh.hpp), in
-// t = d_0 - mu > 0: the dual is q(t) = d_0 - t - sum_i g_i^2 / (4 (d_i - d_0 + t)), and
-// q'(t) = |n(t)|^2 - 1 with n_i(t) = -g_i / (2 (d_i - d_0 + t)), |n(t)| decreasing in t.
-SphereMin minimiseOnSphere(const std::array<double, 3>& d, const std::array<double, 3>& g) {
-    SphereMin out;
-    const double gnorm = std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
-    if (gnorm == 0.0) {
-        out.value = d[0];
-        out.n = {1.0, 0.0, 0.0};
-        return out;
+// |n(t)|^2 with n_i(t) = -g_i / (2 (d_i - d_0 + t)), and its derivative in t when asked.
+double sphereNorm2(const std::array<double, 3>& d, const std::array<double, 3>& g, double t,
+                   double* derivative) {
+    double sum = 0.0;
+    double dsum = 0.0;
+    for (int i = 0; i < 3; ++i) {
+        const double gap = d[size_t(i)] - d[0] + t;
+        const double ni2 = g[size_t(i)] * g[size_t(i)] / (4.0 * gap * gap);
+        sum += ni2;
+        dsum -= 2.0 * ni2 / gap;
     }
-    const auto norm2 = [&](double t, double* derivative) {
-        double sum = 0.0;
-        double dsum = 0.0;
-        for (int i = 0; i < 3; ++i) {
-            const double gap = d[size_t(i)] - d[0] + t;
-            const double ni2 = g[size_t(i)] * g[size_t(i)] / (4.0 * gap * gap);
-            sum += ni2;
-            dsum -= 2.0 * ni2 / gap;
-        }
-        if (derivative != nullptr) {
-            *derivative = dsum;
-        }
-        return sum;
-    };
+    if (derivative != nullptr) {
+        *derivative = dsum;
+    }
+    return sum;
+}
+
+// The dual q(t) = d_0 - t - sum_i g_i^2 / (4 (d_i - d_0 + t)).
+double sphereDual(const std::array<double, 3>& d, const std::array<double, 3>& g, double at) {
+    double value = d[0] - at;
+    for (int i = 0; i < 3; ++i) {
+        value -= g[size_t(i)] * g[size_t(i)] / (4.0 * (d[size_t(i)] - d[0] + at));
+    }
+    return value;
+}
+
+// The dual's maximiser t >= t_min (|n(t)| = 1, or t_min in the hard case); g is not zero.
+double sphereDualRoot(const std::array<double, 3>& d, const std::array<double, 3>& g,
+                      double gnorm) {
     // |n| <= 1 at t = |g| / 2 (each |n_i| <= |g_i| / |g|). Below t_min, t is rounding next to
     // the matrix's entries: if |n| <= 1 even there, the maximiser is the limit t -> 0 (the hard
     // case: the minimum is a ring or a point on the lowest eigenvector) and t_min is within
@@ -196,44 +200,40 @@ SphereMin minimiseOnSphere(const std::array<double, 3>& d, const std::array<doub
     const double scale = std::max({std::abs(d[0]), std::abs(d[2]), gnorm});
     const double t_min = 1e-17 * scale;
     double t_hi = std::max(0.5 * gnorm, t_min); // |n| <= 1
-    double t = t_min;
-    if (norm2(t_min, nullptr) > 1.0) {
-        double t_lo = t_min; // |n| > 1
-        t = t_hi;
-        // Newton on 1 / |n(t)| = 1 (nearly linear in t: Moré and Sorensen's secular equation),
-        // safeguarded by the bracket; geometric bisection while the bracket spans decades.
-        constexpr int kMaxSteps = 200;
-        for (int step = 0; step < kMaxSteps; ++step) {
-            double dsum = 0.0;
-            const double sum = norm2(t, &dsum);
-            (sum > 1.0 ? t_lo : t_hi) = t;
-            if (std::abs(sum - 1.0) <= 4e-16) {
-                break;
-            }
-            const double norm = std::sqrt(sum);
-            const double psi = 1.0 / norm - 1.0;
-            const double dpsi = -dsum / (2.0 * sum * norm);
-            double next = dpsi != 0.0 ? t - psi / dpsi : 0.0;
-            if (!(next > t_lo && next < t_hi)) {
-                next = t_hi > 4.0 * t_lo ? std::sqrt(t_lo * t_hi) : 0.5 * (t_lo + t_hi);
-            }
-            if (!(next > t_lo && next < t_hi)) {
-                break; // the bracket is two adjacent doubles
-            }
-            t = next;
-        }
-        // The better of the last iterate and the last point with |n| <= 1.
-        const auto dual = [&](double at) {
-            double value = d[0] - at;
-            for (int i = 0; i < 3; ++i) {
-                value -= g[size_t(i)] * g[size_t(i)] / (4.0 * (d[size_t(i)] - d[0] + at));
-            }
-            return value;
-        };
-        if (dual(t_hi) > dual(t)) {
-            t = t_hi;
-        }
+    if (!(sphereNorm2(d, g, t_min, nullptr) > 1.0)) {
+        return t_min; // |n| <= 1 (or NaN) already at t_min: the hard case
     }
+    double t_lo = t_min; // |n| > 1
+    double t = t_hi;
+    // Newton on 1 / |n(t)| = 1 (nearly linear in t: Moré and Sorensen's secular equation),
+    // safeguarded by the bracket; geometric bisection while the bracket spans decades.
+    constexpr int kMaxSteps = 200;
+    for (int step = 0; step < kMaxSteps; ++step) {
+        double dsum = 0.0;
+        const double sum = sphereNorm2(d, g, t, &dsum);
+        (sum > 1.0 ? t_lo : t_hi) = t;
+        if (std::abs(sum - 1.0) <= 4e-16) {
+            break;
+        }
+        const double norm = std::sqrt(sum);
+        const double psi = 1.0 / norm - 1.0;
+        const double dpsi = -dsum / (2.0 * sum * norm);
+        double next = dpsi != 0.0 ? t - psi / dpsi : 0.0;
+        if (!(next > t_lo && next < t_hi)) {
+            next = t_hi > 4.0 * t_lo ? std::sqrt(t_lo * t_hi) : 0.5 * (t_lo + t_hi);
+        }
+        if (!(next > t_lo && next < t_hi)) {
+            break; // the bracket is two adjacent doubles
+        }
+        t = next;
+    }
+    // The better of the last iterate and the last point with |n| <= 1.
+    return sphereDual(d, g, t_hi) > sphereDual(d, g, t) ? t_hi : t;
+}
+
+// The dual value at t and the unit primal point n(t) that goes with it.
+SphereMin spherePointAt(const std::array<double, 3>& d, const std::array<double, 3>& g, double t) {
+    SphereMin out;
     // The dual value at any t > 0 is a lower bound of the minimum (weak duality).
     double value = d[0] - t;
     double sum_n2 = 0.0;
@@ -256,6 +256,20 @@ SphereMin minimiseOnSphere(const std::array<double, 3>& d, const std::array<doub
         out.n[0] = out.n[0] < 0.0 ? -rest : rest;
     }
     return out;
+}
+
+// min over |n| = 1 of sum_i d_i n_i^2 + g_i n_i, d ascending, through the dual (sh.hpp), in
+// t = d_0 - mu > 0: the dual is q(t) = d_0 - t - sum_i g_i^2 / (4 (d_i - d_0 + t)), and
+// q'(t) = |n(t)|^2 - 1 with n_i(t) = -g_i / (2 (d_i - d_0 + t)), |n(t)| decreasing in t.
+SphereMin minimiseOnSphere(const std::array<double, 3>& d, const std::array<double, 3>& g) {
+    const double gnorm = std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+    if (gnorm == 0.0) {
+        SphereMin out;
+        out.value = d[0];
+        out.n = {1.0, 0.0, 0.0};
+        return out;
+    }
+    return spherePointAt(d, g, sphereDualRoot(d, g, gnorm));
 }
 
 // Exact minimum of E for the channel with band 1 scaled by s1 and band 2 by s2, and its
@@ -519,6 +533,128 @@ ShRgb scaleBands(const ShRgb& sh, Order order, glm::vec3 band1, glm::vec3 band2)
     return out;
 }
 
+namespace {
+
+// Zeroes channel c (mean <= 0 as stored: no window lifts it) unless it is all zeros already.
+void zeroChannel(DeringResult& result, const ShRgb& stored, Order order, int c) {
+    // A channel of zeros, E = 0, passes as it is.
+    bool all_zero = true;
+    for (int i = 0; i < coefficientCount(order); ++i) {
+        all_zero = all_zero && stored.rgb[i][c] == 0.0f;
+    }
+    if (all_zero) {
+        return;
+    }
+    result.changedChannels |= uint8_t(1u << c);
+    result.zeroedChannels |= uint8_t(1u << c);
+    for (int i = 0; i < kMaxCoefficients; ++i) {
+        result.sh.rgb[i][c] = 0.0f;
+    }
+    result.band1Scale[c] = 0.0f;
+    result.band2Scale[c] = order == Order::L2 ? 0.0f : 1.0f;
+    result.minAfter[c] = 0.0;
+}
+
+// How far rounding channel c's windowed coefficients as stored can move its E.
+double windowRoundingBound(const ShRgb& sh, Order order, int c, Rounding rounding) {
+    // Per unit of sum A_l peak|Y| |L|: half an ulp relative (binary16: 2^-11, plus 2^-25
+    // absolute below its normal range; float: 2^-24), and once more for the float product of
+    // coefficient and scale.
+    const double relative_rounding = rounding == Rounding::Float16 ? 0x1p-11 + 0x1p-24 : 0x1p-23;
+    const double absolute_rounding = rounding == Rounding::Float16 ? 0x1p-25 : 0.0;
+    double bound = 0.0;
+    for (int i = 1; i < coefficientCount(order); ++i) {
+        const double term = double(kCosineLobe[bandOf(i)]) * kBasisPeak[size_t(i)];
+        bound += term * (relative_rounding * std::abs(double(sh.rgb[i][c])) + absolute_rounding);
+    }
+    return bound;
+}
+
+// Channel c's form as the window is solved on it: stored band 0 (the window leaves it alone)
+// and the float bands 1..2.
+ChannelForm deringForm(const ShRgb& sh, const ShRgb& stored, Order order, int c) {
+    ShRgb channel = sh;
+    for (int i = 0; i < kMaxCoefficients; ++i) {
+        channel.rgb[i] = glm::vec3(i == 0 ? stored.rgb[0][c] : sh.rgb[i][c]);
+    }
+    return channelForm(channel, order, 0);
+}
+
+// Windows channel c, raising the target until its stored-rounded minimum clears the floor;
+// false (result untouched) when no attempt does.
+bool windowChannel(DeringResult& result, const ShRgb& sh, const ShRgb& stored, Order order,
+                   Rounding rounding, int c, double mean) {
+    const ChannelForm f = deringForm(sh, stored, order, c);
+    const double rounding_bound = windowRoundingBound(sh, order, c, rounding);
+    const double floor = kDeringMargin * mean;
+    double target = std::min(2.0 * floor + rounding_bound, 0.5 * (floor + mean));
+    const int count = coefficientCount(order);
+    constexpr int kAttempts = 8; // each moves the target halfway to the mean
+    for (int attempt = 0; attempt < kAttempts; ++attempt) {
+        const BandScales w = leastChangeWindow(f, order, target);
+        ShRgb windowed = result.sh;
+        for (int i = 1; i < count; ++i) {
+            const double scale = bandOf(i) == 1 ? w.s1 : w.s2;
+            windowed.rgb[i][c] = roundValue(float(double(sh.rgb[i][c]) * scale), rounding);
+        }
+        windowed.rgb[0][c] = stored.rgb[0][c];
+        const double min_after = minimumIrradiance(windowed, order, c).value;
+        if (min_after >= floor) {
+            result.sh = windowed;
+            result.band1Scale[c] = float(w.s1);
+            result.band2Scale[c] = order == Order::L2 ? float(w.s2) : 1.0f;
+            result.minAfter[c] = min_after;
+            return true;
+        }
+        target += 0.5 * (mean - target);
+    }
+    return false;
+}
+
+// The last resort for channel c: bands 1 and 2 zero, E = the mean everywhere.
+void flattenChannel(DeringResult& result, const ShRgb& stored, Order order, int c, double mean) {
+    for (int i = 1; i < kMaxCoefficients; ++i) {
+        result.sh.rgb[i][c] = 0.0f;
+    }
+    result.sh.rgb[0][c] = stored.rgb[0][c];
+    result.band1Scale[c] = 0.0f;
+    result.band2Scale[c] = order == Order::L2 ? 0.0f : 1.0f;
+    result.minAfter[c] = mean;
+}
+
+// Derings channel c of `result`: left alone when its minimum clears the margin, else zeroed,
+// windowed or flattened.
+void deringChannel(DeringResult& result, const ShRgb& sh, const ShRgb& stored, Order order,
+                   Rounding rounding, int c) {
+    const double mean = meanIrradiance(stored, c);
+    const double min_before = minimumIrradiance(stored, order, c).value;
+    result.minBefore[c] = min_before;
+    result.minAfter[c] = min_before;
+    if (mean > 0.0 && min_before >= kDeringMargin * mean) {
+        return; // already non-negative with the margin: unchanged
+    }
+    if (!(mean > 0.0)) {
+        zeroChannel(result, stored, order, c);
+        return;
+    }
+    result.changedChannels |= uint8_t(1u << c);
+    if (!windowChannel(result, sh, stored, order, rounding, c, mean)) {
+        flattenChannel(result, stored, order, c, mean);
+    }
+}
+
+// RMS change of E from `before` to `after` over the sphere, relative to the RMS of `before`'s.
+float relativeIrradianceChange(const ShRgb& before, const ShRgb& after, Order order) {
+    ShRgb change = after;
+    for (int i = 0; i < kMaxCoefficients; ++i) {
+        change.rgb[i] -= before.rgb[i];
+    }
+    const double energy = irradianceEnergy(before, order);
+    return energy > 0.0 ? float(std::sqrt(irradianceEnergy(change, order) / energy)) : 0.0f;
+}
+
+} // namespace
+
 DeringResult deringIrradiance(const ShRgb& sh, Order order, Rounding rounding) {
     DeringResult result;
     result.sh = sh;
@@ -529,98 +665,15 @@ DeringResult deringIrradiance(const ShRgb& sh, Order order, Rounding rounding) {
         return result; // makeVolume refuses it, naming the value
     }
     const ShRgb stored = roundTo(sh, rounding);
-    const int count = coefficientCount(order);
-    // What rounding the windowed coefficients can move E by, per unit of sum A_l peak|Y| |L|:
-    // half an ulp relative (binary16: 2^-11, plus 2^-25 absolute below its normal range;
-    // float: 2^-24), and once more for the float product of coefficient and scale.
-    const double relative_rounding = rounding == Rounding::Float16 ? 0x1p-11 + 0x1p-24 : 0x1p-23;
-    const double absolute_rounding = rounding == Rounding::Float16 ? 0x1p-25 : 0.0;
     for (int c = 0; c < 3; ++c) {
-        const double mean = meanIrradiance(stored, c);
-        const double min_before = minimumIrradiance(stored, order, c).value;
-        result.minBefore[c] = min_before;
-        result.minAfter[c] = min_before;
-        if (mean > 0.0 && min_before >= kDeringMargin * mean) {
-            continue; // already non-negative with the margin: unchanged
-        }
-        if (!(mean > 0.0)) {
-            // No window lifts a mean <= 0: the channel becomes zero (a channel of zeros, E = 0,
-            // passes as it is).
-            bool all_zero = true;
-            for (int i = 0; i < count; ++i) {
-                all_zero = all_zero && stored.rgb[i][c] == 0.0f;
-            }
-            if (all_zero) {
-                continue;
-            }
-            result.changedChannels |= uint8_t(1u << c);
-            result.zeroedChannels |= uint8_t(1u << c);
-            for (int i = 0; i < kMaxCoefficients; ++i) {
-                result.sh.rgb[i][c] = 0.0f;
-            }
-            result.band1Scale[c] = 0.0f;
-            result.band2Scale[c] = order == Order::L2 ? 0.0f : 1.0f;
-            result.minAfter[c] = 0.0;
-            continue;
-        }
-        result.changedChannels |= uint8_t(1u << c);
-        // Solved on the stored band 0 (the window leaves it alone) and the float bands 1..2.
-        ShRgb channel = sh;
-        for (int i = 0; i < kMaxCoefficients; ++i) {
-            channel.rgb[i] = glm::vec3(i == 0 ? stored.rgb[0][c] : sh.rgb[i][c]);
-        }
-        const ChannelForm f = channelForm(channel, order, 0);
-        double rounding_bound = 0.0;
-        for (int i = 1; i < count; ++i) {
-            const double term = double(kCosineLobe[bandOf(i)]) * kBasisPeak[size_t(i)];
-            rounding_bound +=
-                term * (relative_rounding * std::abs(double(sh.rgb[i][c])) + absolute_rounding);
-        }
-        const double floor = kDeringMargin * mean;
-        double target = std::min(2.0 * floor + rounding_bound, 0.5 * (floor + mean));
-        bool done = false;
-        constexpr int kAttempts = 8; // each moves the target halfway to the mean
-        for (int attempt = 0; attempt < kAttempts && !done; ++attempt) {
-            const BandScales w = leastChangeWindow(f, order, target);
-            ShRgb windowed = result.sh;
-            for (int i = 1; i < count; ++i) {
-                const double scale = bandOf(i) == 1 ? w.s1 : w.s2;
-                windowed.rgb[i][c] = roundValue(float(double(sh.rgb[i][c]) * scale), rounding);
-            }
-            windowed.rgb[0][c] = stored.rgb[0][c];
-            const double min_after = minimumIrradiance(windowed, order, c).value;
-            if (min_after >= floor) {
-                result.sh = windowed;
-                result.band1Scale[c] = float(w.s1);
-                result.band2Scale[c] = order == Order::L2 ? float(w.s2) : 1.0f;
-                result.minAfter[c] = min_after;
-                done = true;
-            }
-            target += 0.5 * (mean - target);
-        }
-        if (!done) {
-            // The last resort: bands 1 and 2 zero, E = the mean everywhere.
-            for (int i = 1; i < kMaxCoefficients; ++i) {
-                result.sh.rgb[i][c] = 0.0f;
-            }
-            result.sh.rgb[0][c] = stored.rgb[0][c];
-            result.band1Scale[c] = 0.0f;
-            result.band2Scale[c] = order == Order::L2 ? 0.0f : 1.0f;
-            result.minAfter[c] = mean;
-        }
+        deringChannel(result, sh, stored, order, rounding, c);
     }
     if (!result.changed()) {
         return result;
     }
     // The channels left alone keep their coefficients as they came; the changed ones are
     // stored-rounded already. Band 0 of a changed channel is its stored value.
-    ShRgb change = result.sh;
-    for (int i = 0; i < kMaxCoefficients; ++i) {
-        change.rgb[i] -= sh.rgb[i];
-    }
-    const double energy = irradianceEnergy(sh, order);
-    result.relativeChange =
-        energy > 0.0 ? float(std::sqrt(irradianceEnergy(change, order) / energy)) : 0.0f;
+    result.relativeChange = relativeIrradianceChange(sh, result.sh, order);
     return result;
 }
 

@@ -168,17 +168,12 @@ sh::ShRgb Volume::probe(size_t probe_index) const {
     return unpackProbe(texels, desc.shOrder);
 }
 
-Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
-                          std::span<const uint8_t> validity, std::span<const uint8_t> visibility) {
-    std::vector<uint32_t> indirection;
-    if (desc.layout == VolumeLayout::Bricked) {
-        auto built =
-            brick::buildIndirection(desc.grid.resolution(), desc.bricks, volumeLabel(desc));
-        if (!built) {
-            return built.error();
-        }
-        indirection = std::move(built).value();
-    }
+namespace {
+
+// Checks the probe, validity and visibility counts against the desc's probe count.
+Result<void> checkInputSizes(const VolumeDesc& desc, std::span<const sh::ShRgb> probes,
+                             std::span<const uint8_t> validity,
+                             std::span<const uint8_t> visibility) {
     const size_t probe_count = desc.probeCount();
     if (probes.size() != probe_count) {
         return makeError(ErrorCode::InconsistentSize,
@@ -196,13 +191,22 @@ Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
                              " visibility bytes given for a grid of " +
                              std::to_string(probe_count) + " probes (6 per probe)");
     }
+    return {};
+}
 
-    Volume volume;
-    const uint32_t planes = planeCount(desc.shOrder);
-    const size_t components = size_t(planes) * probe_count * 4;
-    std::vector<float> texels(components);
+// The probes as float texels (plane-major), and the largest magnitude and the probe it is in.
+struct PackedTexels {
+    std::vector<float> texels;
     float largest = 0.0f;
-    size_t largest_probe = 0;
+    size_t largestProbe = 0;
+};
+
+// Packs the probes into texels, refusing a non-finite coefficient or one past the bound.
+Result<PackedTexels> packTexels(const VolumeDesc& desc, std::span<const sh::ShRgb> probes) {
+    const size_t probe_count = probes.size();
+    const uint32_t planes = planeCount(desc.shOrder);
+    PackedTexels out;
+    out.texels.resize(size_t(planes) * probe_count * 4);
     for (size_t i = 0; i < probe_count; ++i) {
         glm::vec4 packed[7];
         packProbe(probes[i], desc.shOrder, packed);
@@ -221,33 +225,64 @@ Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
                                          ", more than the texel magnitude bound " +
                                          numberText(kMaxTexelMagnitude));
                 }
-                if (std::abs(v) > largest) {
-                    largest = std::abs(v);
-                    largest_probe = i;
+                if (std::abs(v) > out.largest) {
+                    out.largest = std::abs(v);
+                    out.largestProbe = i;
                 }
-                texels[4 * (size_t(p) * probe_count + i) + k] = v;
+                out.texels[4 * (size_t(p) * probe_count + i) + k] = v;
             }
         }
     }
+    return out;
+}
 
-    if (desc.storage == Storage::Float16) {
-        if (largest > kHalfMax) {
-            return makeError(ErrorCode::OutOfRange,
-                             volumeLabel(desc) + ": largest SH coefficient " +
-                                 std::to_string(largest) + " (probe " +
-                                 std::to_string(largest_probe) + ") exceeds the half-float " +
-                                 "maximum 65504; use \"format\": \"float\" storage");
+// Puts the texels into the volume in the desc's storage; half refuses values past kHalfMax.
+Result<void> storeTexels(Volume& volume, const VolumeDesc& desc, PackedTexels packed) {
+    if (desc.storage != Storage::Float16) {
+        volume.texelsF32 = std::move(packed.texels);
+        return {};
+    }
+    if (packed.largest > kHalfMax) {
+        return makeError(ErrorCode::OutOfRange,
+                         volumeLabel(desc) + ": largest SH coefficient " +
+                             std::to_string(packed.largest) + " (probe " +
+                             std::to_string(packed.largestProbe) + ") exceeds the half-float " +
+                             "maximum 65504; use \"format\": \"float\" storage");
+    }
+    volume.texelsF16.resize(packed.texels.size());
+    for (size_t i = 0; i < packed.texels.size(); ++i) {
+        // Imath::half rounds to nearest even; the range check above rules out overflow.
+        volume.texelsF16[i] = Imath::half(packed.texels[i]).bits();
+    }
+    return {};
+}
+
+} // namespace
+
+Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
+                          std::span<const uint8_t> validity, std::span<const uint8_t> visibility) {
+    std::vector<uint32_t> indirection;
+    if (desc.layout == VolumeLayout::Bricked) {
+        auto built =
+            brick::buildIndirection(desc.grid.resolution(), desc.bricks, volumeLabel(desc));
+        if (!built) {
+            return built.error();
         }
-        volume.texelsF16.resize(components);
-        for (size_t i = 0; i < components; ++i) {
-            // Imath::half rounds to nearest even; the range check above rules out overflow.
-            volume.texelsF16[i] = Imath::half(texels[i]).bits();
-        }
-    } else {
-        volume.texelsF32 = std::move(texels);
+        indirection = std::move(built).value();
+    }
+    if (auto sizes = checkInputSizes(desc, probes, validity, visibility); !sizes) {
+        return sizes.error();
+    }
+    auto packed = packTexels(desc, probes);
+    if (!packed) {
+        return packed.error();
+    }
+    Volume volume;
+    if (auto stored = storeTexels(volume, desc, std::move(packed).value()); !stored) {
+        return stored.error();
     }
     if (validity.empty()) {
-        volume.validity.assign(probe_count, kProbeValid);
+        volume.validity.assign(desc.probeCount(), kProbeValid);
     } else {
         volume.validity.assign(validity.begin(), validity.end());
     }
