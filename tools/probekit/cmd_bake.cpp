@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "config_options.hpp"
 #include "distributed.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/bench_rays.hpp"
@@ -123,16 +124,11 @@ void printProgress(const baker::BakeProgress& p) {
 
 // The config file (or the defaults) with the flags applied over it.
 Result<baker::BakeConfig> configFromOptions(const BakeOptionsCli& o) {
-    Result<baker::BakeConfig> loaded = o.config.empty()
-                                           ? Result<baker::BakeConfig>(baker::BakeConfig{})
-                                           : baker::loadBakeConfig(o.config);
+    Result<baker::BakeConfig> loaded = loadConfigOrDefaults(o.config);
     if (!loaded) {
         return loaded;
     }
     baker::BakeConfig config = std::move(loaded).value();
-    if (config.volumes.empty()) {
-        config.volumes.push_back(baker::VolumeConfig{});
-    }
     for (const baker::SettingInfo& s : baker::bakeSettings()) {
         if (auto it = o.settings.find(s.path); it != o.settings.end()) {
             if (auto set = baker::setBakeSetting(config, s.path, it->second, s.flag); !set) {

@@ -16,6 +16,7 @@
 
 #include "camera_options.hpp"
 #include "commands.hpp"
+#include "config_options.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/surface_reference.hpp"
 #include "probekit/formats/pvol.hpp"
@@ -356,16 +357,11 @@ int runBench(const BenchOptions& o) {
         printError("bench", message);
         return kExitFailure;
     };
-    Result<baker::BakeConfig> loaded = o.config.empty()
-                                           ? Result<baker::BakeConfig>(baker::BakeConfig{})
-                                           : baker::loadBakeConfig(o.config);
+    Result<baker::BakeConfig> loaded = loadConfigOrDefaults(o.config);
     if (!loaded) {
         return fail(loaded.error().message);
     }
     baker::BakeConfig base = std::move(loaded).value();
-    if (base.volumes.empty()) {
-        base.volumes.push_back(baker::VolumeConfig{});
-    }
     if (base.targetError) {
         return fail(o.config + ": target_error: bench sweeps the settings itself; remove it");
     }

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "config_options.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/formats/file_io.hpp"
 #include "probekit/formats/pvol.hpp"
@@ -181,18 +182,13 @@ int runBenchNoise(const BenchNoiseOptions& o) {
         printError("bench-noise", message);
         return kExitFailure;
     };
-    Result<baker::BakeConfig> loaded = o.config.empty()
-                                           ? Result<baker::BakeConfig>(baker::BakeConfig{})
-                                           : baker::loadBakeConfig(o.config);
+    Result<baker::BakeConfig> loaded = loadConfigOrDefaults(o.config);
     if (!loaded) {
         return fail(loaded.error().message);
     }
     baker::BakeConfig base = std::move(loaded).value();
     if (base.method != baker::Method::Path || base.targetError) {
         return fail(o.config + ": bench-noise measures method path without target_error");
-    }
-    if (base.volumes.empty()) {
-        base.volumes.push_back(baker::VolumeConfig{});
     }
     for (baker::VolumeConfig& v : base.volumes) {
         if (v.layout == VolumeLayout::Bricked) {
