@@ -144,6 +144,173 @@ MessageSeverity toSeverity(VkDebugUtilsMessageSeverityFlagBitsEXT severity) {
     return MessageSeverity::Info;
 }
 
+// The instance's layers and extensions: validation when asked for and installed, debug utils
+// when someone listens, synchronisation validation with the layer.
+struct InstanceSetup {
+    std::vector<const char*> layers;
+    std::vector<const char*> extensions;
+    bool debugUtils = false;
+    bool validationFeatures = false;
+};
+
+// What the instance enables for `options` (validation: the layer is enabled).
+InstanceSetup instanceSetup(const ContextOptions& options, bool validation) {
+    InstanceSetup setup;
+    if (validation) {
+        setup.layers.push_back(kValidationLayer);
+    }
+    // The messenger also hears a validation layer enabled from the environment.
+    setup.debugUtils =
+        options.onMessage &&
+        (hasInstanceExtension(nullptr, VK_EXT_DEBUG_UTILS_EXTENSION_NAME) ||
+         (validation && hasInstanceExtension(kValidationLayer, VK_EXT_DEBUG_UTILS_EXTENSION_NAME)));
+    if (setup.debugUtils) {
+        setup.extensions.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
+    }
+    // Synchronisation validation catches missing barriers, which core validation does not.
+    setup.validationFeatures =
+        validation &&
+        hasInstanceExtension(kValidationLayer, VK_EXT_VALIDATION_FEATURES_EXTENSION_NAME);
+    if (setup.validationFeatures) {
+        setup.extensions.push_back(VK_EXT_VALIDATION_FEATURES_EXTENSION_NAME);
+    }
+    return setup;
+}
+
+// The debug messenger's settings: warnings and errors of every type, to `callback`.
+VkDebugUtilsMessengerCreateInfoEXT messengerInfo(PFN_vkDebugUtilsMessengerCallbackEXT callback,
+                                                 void* user) {
+    VkDebugUtilsMessengerCreateInfoEXT messenger{
+        VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+    messenger.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT |
+                                VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+    messenger.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT |
+                            VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
+                            VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
+    messenger.pfnUserCallback = callback;
+    messenger.pUserData = user;
+    return messenger;
+}
+
+// The Vulkan instance of `setup`, with the messenger (and the validation features) chained in.
+Result<VkInstance> createInstance(const InstanceSetup& setup,
+                                  const VkDebugUtilsMessengerCreateInfoEXT& messenger_info) {
+    VkDebugUtilsMessengerCreateInfoEXT messenger = messenger_info;
+    const VkValidationFeatureEnableEXT enables[] = {
+        VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT};
+    VkValidationFeaturesEXT features{VK_STRUCTURE_TYPE_VALIDATION_FEATURES_EXT};
+    features.enabledValidationFeatureCount = 1;
+    features.pEnabledValidationFeatures = enables;
+
+    VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
+    app.pApplicationName = "probekit";
+    app.applicationVersion = VK_MAKE_VERSION(0, 1, 0);
+    app.pEngineName = "probekit";
+    app.apiVersion = kApiVersion;
+    VkInstanceCreateInfo instance_info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+    instance_info.pApplicationInfo = &app;
+    instance_info.enabledLayerCount = uint32_t(setup.layers.size());
+    instance_info.ppEnabledLayerNames = setup.layers.data();
+    instance_info.enabledExtensionCount = uint32_t(setup.extensions.size());
+    instance_info.ppEnabledExtensionNames = setup.extensions.data();
+    // Chained into instance creation so messages from vkCreateInstance itself arrive too.
+    const void* chain = nullptr;
+    if (setup.debugUtils) {
+        messenger.pNext = chain;
+        chain = &messenger;
+    }
+    if (setup.validationFeatures) {
+        features.pNext = chain;
+        chain = &features;
+    }
+    instance_info.pNext = chain;
+    VkInstance instance = VK_NULL_HANDLE;
+    PK_VK_TRY(vkCreateInstance(&instance_info, nullptr, &instance));
+    return instance;
+}
+
+// The debug messenger, or none where the instance lacks the function.
+Result<VkDebugUtilsMessengerEXT> createMessenger(VkInstance instance,
+                                                 const VkDebugUtilsMessengerCreateInfoEXT& info) {
+    VkDebugUtilsMessengerEXT messenger = VK_NULL_HANDLE;
+    auto create_messenger = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
+        vkGetInstanceProcAddr(instance, "vkCreateDebugUtilsMessengerEXT"));
+    if (create_messenger != nullptr) {
+        PK_VK_TRY(create_messenger(instance, &info, nullptr, &messenger));
+    }
+    return messenger;
+}
+
+// The chosen physical device and its description.
+struct ChosenDevice {
+    VkPhysicalDevice device = VK_NULL_HANDLE;
+    DeviceInfo info;
+};
+
+// The first suitable device whose name holds `name_filter`, discrete GPUs first; the error lists
+// every device and why it was refused.
+Result<ChosenDevice> chooseDevice(VkInstance instance, const std::string& name_filter) {
+    uint32_t count = 0;
+    PK_VK_TRY(vkEnumeratePhysicalDevices(instance, &count, nullptr));
+    std::vector<VkPhysicalDevice> devices(count);
+    PK_VK_TRY(vkEnumeratePhysicalDevices(instance, &count, devices.data()));
+    std::string refused;
+    int chosen = -1;
+    ChosenDevice out;
+    for (int pass = 0; pass < 2 && chosen < 0; ++pass) {
+        for (uint32_t i = 0; i < count && chosen < 0; ++i) {
+            const DeviceInfo info = describe(devices[i]);
+            if (pass == 0) {
+                refused += (refused.empty() ? "" : "; ") + info.name + ": " +
+                           (info.suitable ? std::string("usable") : info.reason);
+            }
+            const bool name_ok =
+                name_filter.empty() || info.name.find(name_filter) != std::string::npos;
+            // First pass: discrete GPUs only; second pass: any qualifying device.
+            const bool type_ok = pass == 1 || info.type == VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU;
+            if (info.suitable && name_ok && type_ok) {
+                chosen = int(i);
+                out.info = info;
+            }
+        }
+    }
+    if (chosen < 0) {
+        return makeError(
+            ErrorCode::InvalidArgument,
+            "Vulkan: no usable device" +
+                (name_filter.empty() ? std::string() : " matching \"" + name_filter + "\"") +
+                (count == 0 ? std::string(" (none found)") : " (" + refused + ")"));
+    }
+    out.device = devices[size_t(chosen)];
+    return out;
+}
+
+// Nanoseconds per timestamp tick of the queue family, 0 where it writes no timestamps.
+double queueTimestampPeriodNs(VkPhysicalDevice device, uint32_t queue_family, float period) {
+    uint32_t family_count = 0;
+    vkGetPhysicalDeviceQueueFamilyProperties(device, &family_count, nullptr);
+    std::vector<VkQueueFamilyProperties> families(family_count);
+    vkGetPhysicalDeviceQueueFamilyProperties(device, &family_count, families.data());
+    return families[queue_family].timestampValidBits > 0 ? double(period) : 0.0;
+}
+
+// The logical device with one queue of `queue_family` and no optional feature.
+Result<VkDevice> createDevice(VkPhysicalDevice physical_device, uint32_t queue_family) {
+    const float priority = 1.0f;
+    VkDeviceQueueCreateInfo queue{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+    queue.queueFamilyIndex = queue_family;
+    queue.queueCount = 1;
+    queue.pQueuePriorities = &priority;
+    VkPhysicalDeviceFeatures enabled{}; // the runtime needs no optional feature
+    VkDeviceCreateInfo device_info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+    device_info.queueCreateInfoCount = 1;
+    device_info.pQueueCreateInfos = &queue;
+    device_info.pEnabledFeatures = &enabled;
+    VkDevice device = VK_NULL_HANDLE;
+    PK_VK_TRY(vkCreateDevice(physical_device, &device_info, nullptr, &device));
+    return device;
+}
+
 } // namespace
 
 Result<std::vector<DeviceInfo>> enumerateDevices() {
@@ -179,142 +346,44 @@ VKAPI_ATTR VkBool32 VKAPI_CALL GpuContext::debugCallback(
 Result<std::unique_ptr<GpuContext>> GpuContext::create(const ContextOptions& options) {
     std::unique_ptr<GpuContext> context(new GpuContext());
     context->m_onMessage = options.onMessage;
-
-    std::vector<const char*> layers;
-    std::vector<const char*> extensions;
     context->m_validation = options.validation && hasLayer(kValidationLayer);
-    if (context->m_validation) {
-        layers.push_back(kValidationLayer);
+    const InstanceSetup setup = instanceSetup(options, context->m_validation);
+    const VkDebugUtilsMessengerCreateInfoEXT messenger =
+        messengerInfo(&GpuContext::debugCallback, context.get());
+    // Each handle goes into the context as soon as it exists, so a later failure destroys it.
+    Result<VkInstance> instance = createInstance(setup, messenger);
+    if (!instance) {
+        return instance.error();
     }
-    // The messenger also hears a validation layer enabled from the environment.
-    const bool debug_utils =
-        options.onMessage &&
-        (hasInstanceExtension(nullptr, VK_EXT_DEBUG_UTILS_EXTENSION_NAME) ||
-         (context->m_validation &&
-          hasInstanceExtension(kValidationLayer, VK_EXT_DEBUG_UTILS_EXTENSION_NAME)));
-    if (debug_utils) {
-        extensions.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
-    }
-    // Synchronisation validation catches missing barriers, which core validation does not.
-    const bool validation_features =
-        context->m_validation &&
-        hasInstanceExtension(kValidationLayer, VK_EXT_VALIDATION_FEATURES_EXTENSION_NAME);
-    if (validation_features) {
-        extensions.push_back(VK_EXT_VALIDATION_FEATURES_EXTENSION_NAME);
-    }
-
-    VkDebugUtilsMessengerCreateInfoEXT messenger{
-        VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
-    messenger.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT |
-                                VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
-    messenger.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT |
-                            VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
-                            VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
-    messenger.pfnUserCallback = &GpuContext::debugCallback;
-    messenger.pUserData = context.get();
-
-    const VkValidationFeatureEnableEXT enables[] = {
-        VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT};
-    VkValidationFeaturesEXT features{VK_STRUCTURE_TYPE_VALIDATION_FEATURES_EXT};
-    features.enabledValidationFeatureCount = 1;
-    features.pEnabledValidationFeatures = enables;
-
-    VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
-    app.pApplicationName = "probekit";
-    app.applicationVersion = VK_MAKE_VERSION(0, 1, 0);
-    app.pEngineName = "probekit";
-    app.apiVersion = kApiVersion;
-    VkInstanceCreateInfo instance_info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
-    instance_info.pApplicationInfo = &app;
-    instance_info.enabledLayerCount = uint32_t(layers.size());
-    instance_info.ppEnabledLayerNames = layers.data();
-    instance_info.enabledExtensionCount = uint32_t(extensions.size());
-    instance_info.ppEnabledExtensionNames = extensions.data();
-    // Chained into instance creation so messages from vkCreateInstance itself arrive too.
-    const void* chain = nullptr;
-    if (debug_utils) {
-        messenger.pNext = chain;
-        chain = &messenger;
-    }
-    if (validation_features) {
-        features.pNext = chain;
-        chain = &features;
-    }
-    instance_info.pNext = chain;
-    PK_VK_TRY(vkCreateInstance(&instance_info, nullptr, &context->m_instance));
-
-    if (debug_utils) {
-        messenger.pNext = nullptr;
-        auto create_messenger = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
-            vkGetInstanceProcAddr(context->m_instance, "vkCreateDebugUtilsMessengerEXT"));
-        if (create_messenger != nullptr) {
-            PK_VK_TRY(
-                create_messenger(context->m_instance, &messenger, nullptr, &context->m_messenger));
+    context->m_instance = instance.value();
+    if (setup.debugUtils) {
+        Result<VkDebugUtilsMessengerEXT> created = createMessenger(context->m_instance, messenger);
+        if (!created) {
+            return created.error();
         }
+        context->m_messenger = created.value();
     }
 
-    uint32_t count = 0;
-    PK_VK_TRY(vkEnumeratePhysicalDevices(context->m_instance, &count, nullptr));
-    std::vector<VkPhysicalDevice> devices(count);
-    PK_VK_TRY(vkEnumeratePhysicalDevices(context->m_instance, &count, devices.data()));
-    std::string refused;
-    int chosen = -1;
-    for (int pass = 0; pass < 2 && chosen < 0; ++pass) {
-        for (uint32_t i = 0; i < count && chosen < 0; ++i) {
-            const DeviceInfo info = describe(devices[i]);
-            if (pass == 0) {
-                refused += (refused.empty() ? "" : "; ") + info.name + ": " +
-                           (info.suitable ? std::string("usable") : info.reason);
-            }
-            const bool name_ok = options.deviceNameFilter.empty() ||
-                                 info.name.find(options.deviceNameFilter) != std::string::npos;
-            // First pass: discrete GPUs only; second pass: any qualifying device.
-            const bool type_ok = pass == 1 || info.type == VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU;
-            if (info.suitable && name_ok && type_ok) {
-                chosen = int(i);
-                context->m_deviceInfo = info;
-            }
-        }
+    Result<ChosenDevice> chosen = chooseDevice(context->m_instance, options.deviceNameFilter);
+    if (!chosen) {
+        return chosen.error();
     }
-    if (chosen < 0) {
-        return makeError(ErrorCode::InvalidArgument,
-                         "Vulkan: no usable device" +
-                             (options.deviceNameFilter.empty()
-                                  ? std::string()
-                                  : " matching \"" + options.deviceNameFilter + "\"") +
-                             (count == 0 ? std::string(" (none found)") : " (" + refused + ")"));
-    }
-    context->m_physicalDevice = devices[size_t(chosen)];
+    context->m_deviceInfo = chosen.value().info;
+    context->m_physicalDevice = chosen.value().device;
     context->m_queueFamily = findQueueFamily(context->m_physicalDevice);
-
     VkPhysicalDeviceProperties properties;
     vkGetPhysicalDeviceProperties(context->m_physicalDevice, &properties);
     context->m_limits = properties.limits;
     vkGetPhysicalDeviceMemoryProperties(context->m_physicalDevice, &context->m_memory);
-    {
-        uint32_t family_count = 0;
-        vkGetPhysicalDeviceQueueFamilyProperties(context->m_physicalDevice, &family_count, nullptr);
-        std::vector<VkQueueFamilyProperties> families(family_count);
-        vkGetPhysicalDeviceQueueFamilyProperties(context->m_physicalDevice, &family_count,
-                                                 families.data());
-        if (families[context->m_queueFamily].timestampValidBits > 0) {
-            context->m_timestampPeriodNs = double(properties.limits.timestampPeriod);
-        }
+    context->m_timestampPeriodNs = queueTimestampPeriodNs(
+        context->m_physicalDevice, context->m_queueFamily, properties.limits.timestampPeriod);
+
+    Result<VkDevice> device = createDevice(context->m_physicalDevice, context->m_queueFamily);
+    if (!device) {
+        return device.error();
     }
-
-    const float priority = 1.0f;
-    VkDeviceQueueCreateInfo queue{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
-    queue.queueFamilyIndex = context->m_queueFamily;
-    queue.queueCount = 1;
-    queue.pQueuePriorities = &priority;
-    VkPhysicalDeviceFeatures enabled{}; // the runtime needs no optional feature
-    VkDeviceCreateInfo device_info{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
-    device_info.queueCreateInfoCount = 1;
-    device_info.pQueueCreateInfos = &queue;
-    device_info.pEnabledFeatures = &enabled;
-    PK_VK_TRY(vkCreateDevice(context->m_physicalDevice, &device_info, nullptr, &context->m_device));
+    context->m_device = device.value();
     vkGetDeviceQueue(context->m_device, context->m_queueFamily, 0, &context->m_queue);
-
     VkCommandPoolCreateInfo pool{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
     pool.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
     pool.queueFamilyIndex = context->m_queueFamily;

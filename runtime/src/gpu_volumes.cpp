@@ -694,33 +694,49 @@ Result<void> GpuVolumeSet::Impl::ensureStaging(size_t bytes) {
     return {};
 }
 
-Result<void> GpuVolumeSet::Impl::uploadBricked(size_t index, VolumeState which,
-                                               const Volume& source) {
-    Slot& slot = slots[index];
-    StateImages& state = slot.states[size_t(which)];
-    const bool primary = which == VolumeState::Primary;
+namespace {
+
+// Where a bricked upload's parts sit in the staging buffer: the texels as stored, then (primary
+// state) the indirection and, with visibility, the visibility atlas.
+struct BrickedStaging {
+    bool primary = false;
+    bool visible = false;
+    size_t texelBytes = 0;
+    size_t entryBytes = 0; // per indirection entry: 4 (R32_UINT) or 8 (RG32_UINT, y = 0)
+    size_t indirectionBytes = 0;
+    size_t visibilityBytes = 0;
+
+    size_t total() const { return texelBytes + indirectionBytes + visibilityBytes; }
+};
+
+// The staging layout of `source` for a state (primary: the indirection comes along; visible:
+// the visibility too).
+BrickedStaging brickedStaging(const Volume& source, bool primary, bool visible) {
+    BrickedStaging s;
+    s.primary = primary;
+    s.visible = visible;
     // The stored planes are already brick after brick, each brick's 64 texels a 4 x 4 x 4 box
     // (x fastest): they are staged as they are, one copy region per brick.
-    const size_t texel_bytes = source.texelBytes();
+    s.texelBytes = source.texelBytes();
     // The primary state brings the indirection and, with visibility, the visibility atlas,
     // both in the slot's integer image: entries of 4 bytes (R32_UINT) or 8 (RG32_UINT, y = 0).
-    const bool visible = primary && slot.visibility;
-    assert(!visible || source.hasVisibility());
-    const size_t entry_bytes = visible ? kVisibilityTexelBytes : sizeof(uint32_t);
-    const size_t indirection_bytes = primary ? source.indirection.size() * entry_bytes : 0;
-    const size_t visibility_bytes = visible ? source.probeCount() * kVisibilityTexelBytes : 0;
-    const size_t bytes = texel_bytes + indirection_bytes + visibility_bytes;
-    PK_TRY(ensureStaging(bytes));
-    auto* out = static_cast<uint8_t*>(staging.mapped);
+    s.entryBytes = visible ? kVisibilityTexelBytes : sizeof(uint32_t);
+    s.indirectionBytes = primary ? source.indirection.size() * s.entryBytes : 0;
+    s.visibilityBytes = visible ? source.probeCount() * kVisibilityTexelBytes : 0;
+    return s;
+}
+
+// Writes the parts of `layout` from `source` into the staging memory at `out`.
+void packBrickedStaging(const Volume& source, const BrickedStaging& layout, uint8_t* out) {
     std::memcpy(out,
                 source.desc.storage == Storage::Float32
                     ? static_cast<const void*>(source.texelsF32.data())
                     : static_cast<const void*>(source.texelsF16.data()),
-                texel_bytes);
-    if (primary) {
+                layout.texelBytes);
+    if (layout.primary) {
         const std::vector<brick::Brick>& bricks = source.desc.bricks.bricks;
-        const size_t stride = entry_bytes / sizeof(uint32_t);
-        auto* entries = reinterpret_cast<uint32_t*>(out + texel_bytes);
+        const size_t stride = layout.entryBytes / sizeof(uint32_t);
+        auto* entries = reinterpret_cast<uint32_t*>(out + layout.texelBytes);
         for (size_t c = 0; c < source.indirection.size(); ++c) {
             const uint32_t b = source.indirection[c];
             entries[c * stride] = PK_BRICK_ENTRY(b, uint32_t(bricks[b].level));
@@ -729,9 +745,9 @@ Result<void> GpuVolumeSet::Impl::uploadBricked(size_t index, VolumeState which,
             }
         }
     }
-    if (visible) {
+    if (layout.visible) {
         // Probe by probe in stored order: each brick's 64 probes are a 4 x 4 x 4 box (x fastest).
-        uint8_t* texel = out + texel_bytes + indirection_bytes;
+        uint8_t* texel = out + layout.texelBytes + layout.indirectionBytes;
         for (size_t probe = 0; probe < source.probeCount(); ++probe) {
             std::memcpy(texel, &source.visibility[probe * visibility::kBytesPerProbe],
                         visibility::kBytesPerProbe);
@@ -740,80 +756,105 @@ Result<void> GpuVolumeSet::Impl::uploadBricked(size_t index, VolumeState which,
             texel += kVisibilityTexelBytes;
         }
     }
+}
 
+// Clears an image being uploaded (in TRANSFER_DST_OPTIMAL) to zero before its copies.
+void clearForUpload(VkCommandBuffer cmd, VkImage image) {
+    const VkImageSubresourceRange range{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+    const VkClearColorValue zero{};
+    vkCmdClearColorImage(cmd, image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &zero, 1, &range);
+    detail::imageBarrier(cmd, image, VK_IMAGE_ASPECT_COLOR_BIT,
+                         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                         VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
+                         VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
+}
+
+// The copy of brick b's 4 x 4 x 4 box from `buffer_offset` to its atlas slot, raised by `lift`.
+VkBufferImageCopy brickRegion(uint32_t b, glm::uvec3 atlas_slots, VkDeviceSize buffer_offset,
+                              glm::uvec3 lift) {
+    const glm::uvec3 origin = brickAtlasSlot(b, atlas_slots) * PK_BRICK_SIZE + lift;
+    VkBufferImageCopy region{};
+    region.bufferOffset = buffer_offset;
+    region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+    region.imageOffset = {int32_t(origin.x), int32_t(origin.y), int32_t(origin.z)};
+    region.imageExtent = {PK_BRICK_SIZE, PK_BRICK_SIZE, PK_BRICK_SIZE};
+    return region;
+}
+
+// Records the copies of every plane's bricks from the staging buffer into the state's atlas.
+void recordBrickPlanes(VkCommandBuffer cmd, VkBuffer staging, const Slot& slot,
+                       const StateImages& state, const Volume& source) {
     const size_t brick_count = source.desc.bricks.bricks.size();
     const size_t texel_size = texelSize(source.desc.storage);
     std::vector<VkBufferImageCopy> regions(brick_count);
-    PK_TRY(context->submitAndWait([&](VkCommandBuffer cmd) {
-        const VkImageSubresourceRange range{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
-        const VkClearColorValue zero{};
-        for (uint32_t p = 0; p < source.planes(); ++p) {
-            const Image& image = state.planes[p];
-            // Unused slots are cleared: a filter tap of weight 0 next to a slot must not read
-            // a NaN.
-            beginImageUpload(cmd, image.image, VK_IMAGE_LAYOUT_UNDEFINED);
-            vkCmdClearColorImage(cmd, image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &zero, 1,
-                                 &range);
-            detail::imageBarrier(cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT,
-                                 VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                                 VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                                 VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
-                                 VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
-            for (size_t b = 0; b < brick_count; ++b) {
-                const glm::uvec3 origin =
-                    brickAtlasSlot(uint32_t(b), slot.atlasSlots) * PK_BRICK_SIZE;
-                VkBufferImageCopy& region = regions[b];
-                region = {};
-                region.bufferOffset =
-                    (p * source.probeCount() + b * brick::kBrickProbeCount) * texel_size;
-                region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
-                region.imageOffset = {int32_t(origin.x), int32_t(origin.y), int32_t(origin.z)};
-                region.imageExtent = {PK_BRICK_SIZE, PK_BRICK_SIZE, PK_BRICK_SIZE};
-            }
-            finishImageUpload(cmd, staging.buffer, image.image, regions);
+    for (uint32_t p = 0; p < source.planes(); ++p) {
+        const Image& image = state.planes[p];
+        // Unused slots are cleared: a filter tap of weight 0 next to a slot must not read
+        // a NaN.
+        beginImageUpload(cmd, image.image, VK_IMAGE_LAYOUT_UNDEFINED);
+        clearForUpload(cmd, image.image);
+        for (size_t b = 0; b < brick_count; ++b) {
+            regions[b] =
+                brickRegion(uint32_t(b), slot.atlasSlots,
+                            (p * source.probeCount() + b * brick::kBrickProbeCount) * texel_size,
+                            glm::uvec3(0u));
         }
+        finishImageUpload(cmd, staging, image.image, regions);
+    }
+}
+
+// Records the copies of the indirection (and the visibility atlas) into the slot's integer image.
+void recordBrickIntegerImage(VkCommandBuffer cmd, VkBuffer staging, const Slot& slot,
+                             const Volume& source, const BrickedStaging& layout) {
+    const size_t brick_count = source.desc.bricks.bricks.size();
+    const Image& image = slot.integer;
+    const glm::uvec3 cells =
+        brick::finestCells(source.desc.grid.resolution(), source.desc.bricks.maxLevel);
+    beginImageUpload(cmd, image.image, VK_IMAGE_LAYOUT_UNDEFINED);
+    if (layout.visible) {
+        // Texels outside both regions are never read; cleared for determinism.
+        clearForUpload(cmd, image.image);
+    }
+    std::vector<VkBufferImageCopy> integer_regions(1 + (layout.visible ? brick_count : 0));
+    VkBufferImageCopy& indirection_region = integer_regions[0];
+    indirection_region = {};
+    indirection_region.bufferOffset = layout.texelBytes;
+    indirection_region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+    indirection_region.imageExtent = {cells.x, cells.y, cells.z};
+    for (size_t b = 0; layout.visible && b < brick_count; ++b) {
+        // The visibility atlas sits above the indirection: z offset C.z.
+        integer_regions[1 + b] =
+            brickRegion(uint32_t(b), slot.atlasSlots,
+                        layout.texelBytes + layout.indirectionBytes +
+                            b * brick::kBrickProbeCount * kVisibilityTexelBytes,
+                        glm::uvec3(0u, 0u, cells.z));
+    }
+    finishImageUpload(cmd, staging, image.image, integer_regions);
+}
+
+} // namespace
+
+Result<void> GpuVolumeSet::Impl::uploadBricked(size_t index, VolumeState which,
+                                               const Volume& source) {
+    Slot& slot = slots[index];
+    StateImages& state = slot.states[size_t(which)];
+    const bool primary = which == VolumeState::Primary;
+    const bool visible = primary && slot.visibility;
+    assert(!visible || source.hasVisibility());
+    const BrickedStaging staged = brickedStaging(source, primary, visible);
+    PK_TRY(ensureStaging(staged.total()));
+    packBrickedStaging(source, staged, static_cast<uint8_t*>(staging.mapped));
+    PK_TRY(context->submitAndWait([&](VkCommandBuffer cmd) {
+        recordBrickPlanes(cmd, staging.buffer, slot, state, source);
         if (primary) {
-            const Image& image = slot.integer;
-            const glm::uvec3 cells =
-                brick::finestCells(source.desc.grid.resolution(), source.desc.bricks.maxLevel);
-            beginImageUpload(cmd, image.image, VK_IMAGE_LAYOUT_UNDEFINED);
-            if (visible) {
-                // Texels outside both regions are never read; cleared for determinism.
-                vkCmdClearColorImage(cmd, image.image, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &zero,
-                                     1, &range);
-                detail::imageBarrier(cmd, image.image, VK_IMAGE_ASPECT_COLOR_BIT,
-                                     VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                                     VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
-                                     VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT,
-                                     VK_PIPELINE_STAGE_TRANSFER_BIT, VK_ACCESS_TRANSFER_WRITE_BIT);
-            }
-            std::vector<VkBufferImageCopy> integer_regions(1 + (visible ? brick_count : 0));
-            VkBufferImageCopy& indirection_region = integer_regions[0];
-            indirection_region = {};
-            indirection_region.bufferOffset = texel_bytes;
-            indirection_region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
-            indirection_region.imageExtent = {cells.x, cells.y, cells.z};
-            for (size_t b = 0; visible && b < brick_count; ++b) {
-                // The visibility atlas sits above the indirection: z offset C.z.
-                const glm::uvec3 origin =
-                    brickAtlasSlot(uint32_t(b), slot.atlasSlots) * PK_BRICK_SIZE +
-                    glm::uvec3(0u, 0u, cells.z);
-                VkBufferImageCopy& region = integer_regions[1 + b];
-                region = {};
-                region.bufferOffset = texel_bytes + indirection_bytes +
-                                      b * brick::kBrickProbeCount * kVisibilityTexelBytes;
-                region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
-                region.imageOffset = {int32_t(origin.x), int32_t(origin.y), int32_t(origin.z)};
-                region.imageExtent = {PK_BRICK_SIZE, PK_BRICK_SIZE, PK_BRICK_SIZE};
-            }
-            finishImageUpload(cmd, staging.buffer, image.image, integer_regions);
+            recordBrickIntegerImage(cmd, staging.buffer, slot, source, staged);
         }
         if (dirty) {
             recordUniforms(cmd);
         }
     }));
     state.initialised = true;
-    uploaded += bytes;
+    uploaded += staged.total();
     return {};
 }
 

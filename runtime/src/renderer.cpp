@@ -271,8 +271,22 @@ struct Renderer::Impl {
     void destroyTexture(Texture& texture);
     Result<void> writeInstances(const GpuVolumeSet& volumes, const FrameSettings& settings,
                                 uint32_t& count);
+    // One frame's commands, in the steps below.
     void record(VkCommandBuffer cmd, GpuVolumeSet& volumes, const FrameSettings& settings,
                 uint32_t instance_count);
+    // The frame's uniforms for `settings` (gi: the dynamic GI's pass runs).
+    gpu::PkFrameGpu frameUniformsFor(const FrameSettings& settings, bool gi) const;
+    // Frame uniforms, captured in the command buffer: `frame` copied into the uniform buffer
+    // between barriers against earlier reads and for the passes' reads.
+    void recordFrameUniforms(VkCommandBuffer cmd, const gpu::PkFrameGpu& frame);
+    // Pass 1: the environment, the meshes and the probe spheres into the G-buffer.
+    void recordGBufferPass(VkCommandBuffer cmd, const FrameSettings& settings,
+                           uint32_t instance_count);
+    // Pass 2: the shading compute pass, then the dynamic GI's when `gi`.
+    void recordShadingPass(VkCommandBuffer cmd, GpuVolumeSet& volumes,
+                           const FrameSettings& settings, bool probe_views, bool gi);
+    // The copies of the output (and the G-buffer's position and normal) to the readback buffer.
+    void recordReadback(VkCommandBuffer cmd, const FrameSettings& settings);
 };
 
 Renderer::Impl::~Impl() {
@@ -946,15 +960,16 @@ Result<void> Renderer::Impl::writeInstances(const GpuVolumeSet& volumes,
     return {};
 }
 
-void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
-                            const FrameSettings& settings, uint32_t instance_count) {
-    const bool timed = context->timestampPeriodNs() > 0.0;
-    if (timed) {
-        vkCmdResetQueryPool(cmd, queries, 0, kTimestamps);
-    }
-    volumes.recordUniformUpdate(cmd);
+namespace {
 
-    // Frame uniforms, captured in the command buffer.
+// Whether the view is one of the debug views shade.comp's PK_PROBE_VIEWS variant draws.
+bool isProbeView(RenderView view) {
+    return view == RenderView::Probes || view == RenderView::Validity || view == RenderView::Leak;
+}
+
+} // namespace
+
+gpu::PkFrameGpu Renderer::Impl::frameUniformsFor(const FrameSettings& settings, bool gi) const {
     gpu::PkFrameGpu frame{};
     const Camera& cam = settings.camera;
     frame.viewProjection = viewProjection(settings);
@@ -965,10 +980,6 @@ void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
     frame.cameraForward = glm::vec4(basis.forward, 0.0f);
     frame.environment = environment;
     frame.environmentInfo = glm::uvec4(environmentType, 0u, 0u, 0u);
-    const bool probe_views = settings.view == RenderView::Probes ||
-                             settings.view == RenderView::Validity ||
-                             settings.view == RenderView::Leak;
-    const bool gi = settings.dynamicGi && !settings.fetchOnly && !probe_views;
     uint32_t flags = 0;
     if (gi && !settings.bakedLight) {
         flags |= PK_FRAME_NO_BAKED;
@@ -982,6 +993,10 @@ void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
     for (size_t i = 0; i < settings.lights.size(); ++i) {
         frame.lights[i] = packLight(settings.lights[i]);
     }
+    return frame;
+}
+
+void Renderer::Impl::recordFrameUniforms(VkCommandBuffer cmd, const gpu::PkFrameGpu& frame) {
     VkBufferMemoryBarrier uniform_barrier{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER};
     uniform_barrier.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
     uniform_barrier.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
@@ -996,10 +1011,10 @@ void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
     uniform_barrier.dstAccessMask = VK_ACCESS_UNIFORM_READ_BIT;
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, 0,
                          0, nullptr, 1, &uniform_barrier, 0, nullptr);
+}
 
-    if (timed) {
-        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries, 0);
-    }
+void Renderer::Impl::recordGBufferPass(VkCommandBuffer cmd, const FrameSettings& settings,
+                                       uint32_t instance_count) {
     // Pass 1: G-buffer.
     VkClearValue clears[kAttachments]{};
     clears[kColorTargets].depthStencil = {1.0f, 0};
@@ -1048,16 +1063,16 @@ void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
         vkCmdDraw(cmd, sphereVertices, instance_count, 0, 0);
     }
     vkCmdEndRenderPass(cmd);
-    if (timed) {
-        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 1);
-    }
+}
 
+void Renderer::Impl::recordShadingPass(VkCommandBuffer cmd, GpuVolumeSet& volumes,
+                                       const FrameSettings& settings, bool probe_views, bool gi) {
     // Pass 2: shading. The output image's previous contents are not needed (UNDEFINED); the
     // previous frame's copy from it finishes first.
     detail::imageBarrier(cmd, color.image, VK_IMAGE_ASPECT_COLOR_BIT, VK_IMAGE_LAYOUT_UNDEFINED,
                          VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_TRANSFER_BIT, 0,
                          VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_SHADER_WRITE_BIT);
-    // The debug views' variant (shade.comp's PK_PROBE_VIEWS): probe_views above.
+    // The debug views' variant (shade.comp's PK_PROBE_VIEWS): probe_views (isProbeView).
     // The visibility path only where the set needs it: without, the plain filtered code.
     const size_t visibility = volumes.anyVisibility() ? 1 : 0;
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
@@ -1081,10 +1096,9 @@ void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
         vkCmdDispatch(cmd, (settings.width + kShadeGroup - 1) / kShadeGroup,
                       (settings.height + kShadeGroup - 1) / kShadeGroup, 1);
     }
-    if (timed) {
-        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 2);
-    }
+}
 
+void Renderer::Impl::recordReadback(VkCommandBuffer cmd, const FrameSettings& settings) {
     // Readback copies.
     const VkDeviceSize image_bytes = VkDeviceSize(settings.width) * settings.height * 16;
     VkBufferImageCopy region{};
@@ -1119,6 +1133,30 @@ void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
     host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
     vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1,
                          &host, 0, nullptr, 0, nullptr);
+}
+
+void Renderer::Impl::record(VkCommandBuffer cmd, GpuVolumeSet& volumes,
+                            const FrameSettings& settings, uint32_t instance_count) {
+    const bool timed = context->timestampPeriodNs() > 0.0;
+    if (timed) {
+        vkCmdResetQueryPool(cmd, queries, 0, kTimestamps);
+    }
+    volumes.recordUniformUpdate(cmd);
+    const bool probe_views = isProbeView(settings.view);
+    const bool gi = settings.dynamicGi && !settings.fetchOnly && !probe_views;
+    recordFrameUniforms(cmd, frameUniformsFor(settings, gi));
+    if (timed) {
+        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, queries, 0);
+    }
+    recordGBufferPass(cmd, settings, instance_count);
+    if (timed) {
+        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 1);
+    }
+    recordShadingPass(cmd, volumes, settings, probe_views, gi);
+    if (timed) {
+        vkCmdWriteTimestamp(cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries, 2);
+    }
+    recordReadback(cmd, settings);
 }
 
 Renderer::Renderer(std::unique_ptr<Impl> impl) : m_impl(std::move(impl)) {}

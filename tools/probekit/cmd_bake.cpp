@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "config_options.hpp"
 #include "distributed.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/bench_rays.hpp"
@@ -123,16 +124,11 @@ void printProgress(const baker::BakeProgress& p) {
 
 // The config file (or the defaults) with the flags applied over it.
 Result<baker::BakeConfig> configFromOptions(const BakeOptionsCli& o) {
-    Result<baker::BakeConfig> loaded = o.config.empty()
-                                           ? Result<baker::BakeConfig>(baker::BakeConfig{})
-                                           : baker::loadBakeConfig(o.config);
+    Result<baker::BakeConfig> loaded = loadConfigOrDefaults(o.config);
     if (!loaded) {
         return loaded;
     }
     baker::BakeConfig config = std::move(loaded).value();
-    if (config.volumes.empty()) {
-        config.volumes.push_back(baker::VolumeConfig{});
-    }
     for (const baker::SettingInfo& s : baker::bakeSettings()) {
         if (auto it = o.settings.find(s.path); it != o.settings.end()) {
             if (auto set = baker::setBakeSetting(config, s.path, it->second, s.flag); !set) {
@@ -528,16 +524,96 @@ int runBake(const BakeOptionsCli& o) {
     return code;
 }
 
-// One process's part: every process bakes (its share of the probes goes through the job's
-// distributor); rank 0 alone prints, writes the file and the report and verifies.
-int runBakeProcess(const BakeOptionsCli& all, const DistributedBake* job) {
-    const bool rank0 = !job || job->rank() == 0;
+// The options this process bakes with: only rank 0 prints, reports and verifies.
+BakeOptionsCli processOptions(const BakeOptionsCli& all, bool rank0) {
     BakeOptionsCli o = all;
     if (!rank0) {
         o.quiet = true;
         o.report.clear();
         o.verify = false;
     }
+    return o;
+}
+
+// --target-error: the settings its pilot bakes choose, written into `config` (none without it).
+Result<std::optional<baker::TargetChoice>>
+chooseForTarget(const BakeOptionsCli& o, const baker::Scene& scene, baker::BakeConfig& config) {
+    std::optional<baker::TargetChoice> choice;
+    if (!config.targetError) {
+        return choice;
+    }
+    Result<baker::TargetChoice> chosen =
+        baker::chooseSettings(scene, config, *config.targetError, o.threads);
+    if (!chosen) {
+        return chosen.error();
+    }
+    choice = std::move(chosen).value();
+    config = choice->config;
+    if (!o.quiet) {
+        printChoice(*choice);
+    }
+    return choice;
+}
+
+// Prints each of `warnings` that is not among `already` (printed before).
+void printNewWarnings(const std::vector<std::string>& warnings,
+                      const std::vector<std::string>& already) {
+    for (const std::string& w : warnings) {
+        if (std::find(already.begin(), already.end(), w) == already.end()) {
+            printError("bake", "warning: " + w);
+        }
+    }
+}
+
+// A finished bake and what made it, for rank 0's output.
+struct BakeDone {
+    const BakeOptionsCli& o;
+    const baker::Scene& scene;
+    const baker::BakeConfig& config;
+    const baker::BakeResult& result;
+    const std::optional<baker::TargetChoice>& choice;
+};
+
+// Rank 0 after the bake: writes the file, prints its summary, verifies it, writes the report
+// and fails when --target-error was missed.
+int finishBake(const BakeDone& d, const DistributedBake* job) {
+    const BakeOptionsCli& o = d.o;
+    if (auto w = writePvol(o.output, d.result.file); !w) {
+        return fail(w.error());
+    }
+    nlohmann::json report = makeReport(o, d.config, d.result, d.choice);
+    if (!o.quiet) {
+        printSummary(o, d.config, d.result, d.choice);
+    }
+    if (job && job->size() > 1) {
+        addTraffic(*job, report, !o.quiet);
+    }
+    if (o.verify) {
+        if (auto v = runVerify(o, d.scene, d.config, d.result.file, report); !v) {
+            return fail(v.error(), "--verify: ");
+        }
+    }
+    const std::string missed = d.choice ? targetMissed(*d.choice, d.result.stats, report) : "";
+    if (!missed.empty()) {
+        report["target_missed"] = missed;
+    }
+    if (!o.report.empty()) {
+        if (auto w = writeFileAtomic(o.report, jsonText(report, 2) + "\n"); !w) {
+            return fail(w.error(), "--report: ");
+        }
+    }
+    if (!missed.empty()) {
+        printError("bake", missed + " (" + o.output + " is written, for inspection)");
+        return kExitFailure;
+    }
+    return kExitOk;
+}
+
+// One process's part: every process bakes (its share of the probes goes through the job's
+// distributor); rank 0 alone prints, writes the file and the report and verifies.
+int runBakeProcess(const BakeOptionsCli& all, const DistributedBake* job) {
+    const bool rank0 = !job || job->rank() == 0;
+    const BakeOptionsCli o = processOptions(all, rank0);
     // A bad -o fails before the bake, not after it (on rank 0, the only one that writes it:
     // other nodes need not see its directory).
     if (Result<std::filesystem::path> target = resolveOutputPath(o.output); rank0 && !target) {
@@ -555,18 +631,10 @@ int runBakeProcess(const BakeOptionsCli& all, const DistributedBake* job) {
     if (Result<void> lit = baker::checkSceneLit(scene.value()); !lit && !o.allowUnlit) {
         return fail(lit.error());
     }
-    std::optional<baker::TargetChoice> choice;
-    if (config.value().targetError) {
-        Result<baker::TargetChoice> chosen = baker::chooseSettings(
-            scene.value(), config.value(), *config.value().targetError, o.threads);
-        if (!chosen) {
-            return fail(chosen.error());
-        }
-        choice = std::move(chosen).value();
-        config.value() = choice->config;
-        if (!o.quiet) {
-            printChoice(*choice);
-        }
+    Result<std::optional<baker::TargetChoice>> choice =
+        chooseForTarget(o, scene.value(), config.value());
+    if (!choice) {
+        return fail(choice.error());
     }
     Result<baker::VolumePlan> plan = baker::planVolumes(scene.value(), config.value());
     if (!plan) {
@@ -580,52 +648,18 @@ int runBakeProcess(const BakeOptionsCli& all, const DistributedBake* job) {
     // What placing the volumes changed from what was asked, before the bake starts; the bake
     // repeats these in its warnings, which are not printed twice.
     const std::vector<std::string>& notes = plan.value().notes;
-    for (const std::string& n : notes) {
-        if (rank0) {
-            printError("bake", "warning: " + n);
-        }
+    if (rank0) {
+        printNewWarnings(notes, {});
     }
     Result<baker::BakeResult> result = bakeWithProgress(o, scene.value(), config.value());
     if (!result) {
         return fail(result.error());
     }
-    for (const std::string& w : result.value().warnings) {
-        if (rank0 && std::find(notes.begin(), notes.end(), w) == notes.end()) {
-            printError("bake", "warning: " + w);
-        }
-    }
     if (!rank0) {
         return kExitOk;
     }
-    if (auto w = writePvol(o.output, result.value().file); !w) {
-        return fail(w.error());
-    }
-    nlohmann::json report = makeReport(o, config.value(), result.value(), choice);
-    if (!o.quiet) {
-        printSummary(o, config.value(), result.value(), choice);
-    }
-    if (job && job->size() > 1) {
-        addTraffic(*job, report, !o.quiet);
-    }
-    if (o.verify) {
-        if (auto v = runVerify(o, scene.value(), config.value(), result.value().file, report); !v) {
-            return fail(v.error(), "--verify: ");
-        }
-    }
-    const std::string missed = choice ? targetMissed(*choice, result.value().stats, report) : "";
-    if (!missed.empty()) {
-        report["target_missed"] = missed;
-    }
-    if (!o.report.empty()) {
-        if (auto w = writeFileAtomic(o.report, jsonText(report, 2) + "\n"); !w) {
-            return fail(w.error(), "--report: ");
-        }
-    }
-    if (!missed.empty()) {
-        printError("bake", missed + " (" + o.output + " is written, for inspection)");
-        return kExitFailure;
-    }
-    return kExitOk;
+    printNewWarnings(result.value().warnings, notes);
+    return finishBake({o, scene.value(), config.value(), result.value(), choice.value()}, job);
 }
 
 // A CLI11 check of a flag's value by the settings table's rule for `path`.

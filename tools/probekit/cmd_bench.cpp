@@ -16,6 +16,7 @@
 
 #include "camera_options.hpp"
 #include "commands.hpp"
+#include "config_options.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/surface_reference.hpp"
 #include "probekit/formats/pvol.hpp"
@@ -351,188 +352,273 @@ constexpr const char* kCsvHeader =
     "dark_ratio,negative_fraction,invalid_probes,surface_median_error,surface_mean_ratio,"
     "surface_under_half,surface_over_two,surface_negative,status\n";
 
-int runBench(const BenchOptions& o) {
-    const auto fail = [](const std::string& message) {
-        printError("bench", message);
-        return kExitFailure;
-    };
-    Result<baker::BakeConfig> loaded = o.config.empty()
-                                           ? Result<baker::BakeConfig>(baker::BakeConfig{})
-                                           : baker::loadBakeConfig(o.config);
+// The user's config made into the sweep's base: refused where bench cannot sweep it, every
+// volume float L2 (the four storage variants are packed from it, kVariants) and the path
+// bounces raised to kPathBounces.
+Result<baker::BakeConfig> benchBaseConfig(const BenchOptions& o) {
+    Result<baker::BakeConfig> loaded = loadConfigOrDefaults(o.config);
     if (!loaded) {
-        return fail(loaded.error().message);
+        return loaded;
     }
     baker::BakeConfig base = std::move(loaded).value();
-    if (base.volumes.empty()) {
-        base.volumes.push_back(baker::VolumeConfig{});
-    }
     if (base.targetError) {
-        return fail(o.config + ": target_error: bench sweeps the settings itself; remove it");
+        return makeError(ErrorCode::InvalidArgument,
+                         o.config + ": target_error: bench sweeps the settings itself; remove it");
     }
     for (size_t i = 0; i < base.volumes.size(); ++i) {
         // The metric compares probe by probe against a reference of the same grids; a bricked
         // volume's bricks depend on the bake, so no two runs share their probes.
         if (base.volumes[i].layout == VolumeLayout::Bricked) {
-            return fail(o.config + ": volumes[" + std::to_string(i) +
-                        "].layout: bench compares dense grids probe by probe; measure bricked "
-                        "volumes with `probekit bake --verify` (or tools/bench-bricked.sh)");
+            return makeError(ErrorCode::InvalidArgument,
+                             o.config + ": volumes[" + std::to_string(i) +
+                                 "].layout: bench compares dense grids probe by probe; measure "
+                                 "bricked volumes with `probekit bake --verify` (or "
+                                 "tools/bench-bricked.sh)");
         }
     }
-    // Every bake is float L2; the four storage variants are packed from it (kVariants).
     for (baker::VolumeConfig& v : base.volumes) {
         v.storage = Storage::Float32;
         v.shOrder = sh::Order::L2;
     }
     base.path.maxBounces = std::max(base.path.maxBounces, kPathBounces);
+    return base;
+}
 
+// The scene lit by the config's environment, and the volumes the config places in it.
+struct BenchScene {
+    baker::Scene scene;
+    std::vector<VolumeDesc> volumes;
+};
+
+// Loads the scene and places the config's volumes in it.
+Result<BenchScene> loadBenchScene(const BenchOptions& o, const baker::BakeConfig& base) {
     baker::LoadOptions load_options;
     load_options.sceneIndex = o.sceneIndex;
     Result<baker::Scene> scene = baker::loadGltf(o.scene, load_options);
     if (!scene) {
-        return fail(scene.error().message);
+        return scene.error();
     }
     Result<baker::Environment> env = baker::makeEnvironment(base.environment);
     if (!env) {
-        return fail(env.error().message);
+        return env.error();
     }
     scene.value().environment = std::move(env).value();
     Result<std::vector<VolumeDesc>> placed = baker::resolveVolumes(scene.value(), base);
     if (!placed) {
-        return fail(placed.error().message);
+        return placed.error();
     }
+    return BenchScene{std::move(scene).value(), std::move(placed).value()};
+}
+
+// Where the reference is read or written: --reference, else NAME-reference.pvol beside the CSV.
+std::filesystem::path referencePath(const BenchOptions& o) {
+    const std::filesystem::path out_path(o.out);
+    return o.reference.empty()
+               ? out_path.parent_path() / (out_path.stem().string() + "-reference.pvol")
+               : std::filesystem::path(o.reference);
+}
+
+// The reference at `path`, if it holds a path bake of exactly these volumes.
+Result<PvolFile> reuseReference(const std::filesystem::path& path, const BenchScene& in,
+                                uint64_t run_seed) {
+    Result<PvolFile> r = readPvol(path);
+    if (!r) {
+        return r;
+    }
+    if (auto ok = checkReference(r.value(), in.volumes, in.scene, run_seed); !ok) {
+        return makeError(ok.error().code,
+                         path.string() + ": does not match: " + ok.error().message);
+    }
+    std::fprintf(stderr, "bench: reusing reference %s (path, %u samples)\n", path.string().c_str(),
+                 referenceSamplesOf(r.value()));
+    return r;
+}
+
+// A new reference: the config's volumes baked by the path method with many samples, written
+// to `path`.
+Result<PvolFile> bakeReference(const BenchOptions& o, const baker::Scene& scene,
+                               const baker::BakeConfig& base,
+                               const baker::BakeOptions& bake_options,
+                               const std::filesystem::path& path) {
+    baker::BakeConfig rc = base;
+    rc.method = baker::Method::Path;
+    rc.dering = false; // the reference keeps the path method's own coefficients
+    rc.seed = base.seed + kReferenceSeedOffset;
+    rc.path.samples =
+        o.referenceSamples.value_or(o.quick ? kReferenceSamplesQuick : kReferenceSamplesFull);
+    std::fprintf(stderr, "bench: baking the reference (path, %u samples, %u bounces) -> %s\n",
+                 rc.path.samples, rc.path.maxBounces, path.string().c_str());
+    Result<baker::BakeResult> r = baker::bake(scene, rc, bake_options);
+    if (!r) {
+        return makeError(r.error().code, "reference: " + r.error().message);
+    }
+    if (auto w = writePvol(path, r.value().file); !w) {
+        return w.error();
+    }
+    std::fprintf(stderr, "bench: reference done in %.1f s\n", r.value().stats.seconds);
+    return std::move(r).value().file;
+}
+
+// Prints the surface reference's own noise, the floor under every run's per-pixel figures.
+void reportSurfaceReference(const BenchOptions& o, const runtime::SurfaceReferenceImage& surface) {
+    Result<runtime::SurfaceError> self = runtime::compareSurface(surface.irradiance, surface);
+    std::fprintf(stderr,
+                 "bench: surface reference %ux%u from %s, %zu pixels compared, median "
+                 "relative noise %.4f (a perfect volume measures a median error of about "
+                 "%.4f)\n",
+                 surface.width, surface.height,
+                 o.surfaceView.camera.empty() ? o.surfaceView.cameraFrom.c_str() : "--camera",
+                 self ? self.value().compared : size_t(0), self ? self.value().referenceNoise : 0.0,
+                 self ? self.value().noiseFloor : 0.0);
+}
+
+// What every row of the sweep is measured against, made once.
+struct BenchContext {
+    const BenchOptions& o;
+    const baker::Scene& scene;
+    const baker::BakeConfig& base;
+    const baker::BakeOptions& bakeOptions;
+    const PvolFile& reference;
+    const std::vector<std::pair<size_t, size_t>>& dark;
+    const runtime::SurfaceReferenceImage& surface;
+    size_t runCount;
+};
+
+// One finished bake of the sweep: which run it was and how long it took.
+struct BakedRun {
+    const Run& run;
+    size_t index;
+    double seconds;
+    const baker::BakeResult& result;
+};
+
+// Appends one variant's CSV row (and prints the float L2 row's figures); fails only when the
+// comparison itself does.
+Result<void> benchVariant(const BenchContext& ctx, const BakedRun& baked, Variant variant,
+                          std::string& csv) {
+    const Run& run = baked.run;
+    const baker::BakeResult& r = baked.result;
+    const std::string format(toString(variant.storage));
+    const std::string order = variant.order == sh::Order::L1 ? "L1" : "L2";
+    const std::string prefix = run.method + "," + csvField(run.parameters) + "," + format + "," +
+                               order + "," + number(baked.seconds) + "," +
+                               std::to_string(r.stats.rays) + ",";
+    Result<PvolFile> packed = repack(r.file, variant, ctx.base.dering);
+    if (!packed) {
+        csv += prefix + "0,nan,nan,nan,nan,nan," + std::to_string(r.stats.invalidProbes) +
+               ",nan,nan,nan,nan,nan," + csvField("saturated: " + packed.error().message) + "\n";
+        std::fprintf(stderr, "bench [%zu/%zu] %s %s %s %s: %s\n", baked.index + 1, ctx.runCount,
+                     run.method.c_str(), run.parameters.c_str(), format.c_str(), order.c_str(),
+                     terminalText(packed.error().message).c_str());
+        return {};
+    }
+    Result<runtime::VolumeError> e =
+        runtime::compareVolumes(packed.value().volumes, ctx.reference.volumes);
+    if (!e) {
+        return e.error();
+    }
+    uint64_t bytes = 0;
+    for (const Volume& v : packed.value().volumes) {
+        bytes += v.texelBytes();
+    }
+    const ExtraFigures f = extraFigures(packed.value(), ctx.reference, ctx.dark);
+    Result<runtime::SurfaceError> sf = surfaceFigures(packed.value(), ctx.surface);
+    if (!sf) {
+        return sf.error();
+    }
+    const runtime::SurfaceError& px = sf.value();
+    csv += prefix + std::to_string(bytes) + "," + number(e.value().relRmse) + "," +
+           number(e.value().maxProbeErr) + "," + number(e.value().maxAbsErr) + "," +
+           number(f.darkRatio) + "," + number(f.negativeFraction) + "," +
+           std::to_string(r.stats.invalidProbes) + "," + number(px.medianAbsError) + "," +
+           number(px.meanRatio) + "," + number(px.shareUnderHalf) + "," + number(px.shareOverTwo) +
+           "," + number(px.shareNegative) + ",ok\n";
+    if (variant.storage == Storage::Float32 && variant.order == sh::Order::L2) {
+        std::fprintf(stderr,
+                     "bench [%zu/%zu] %-4s %-40s %7.2f s  rel RMSE %.4f  worst probe "
+                     "%.4f  dark ratio %.3f  per pixel: median %.4f, mean ratio %.3f, "
+                     "negative %.4f\n",
+                     baked.index + 1, ctx.runCount, run.method.c_str(), run.parameters.c_str(),
+                     baked.seconds, e.value().relRmse, e.value().maxProbeErr, f.darkRatio,
+                     px.medianAbsError, px.meanRatio, px.shareNegative);
+    }
+    return {};
+}
+
+// Bakes one run of the sweep and appends its rows: one per variant, or one saying why the
+// bake failed.
+Result<void> benchRun(const BenchContext& ctx, const Run& run, size_t index, std::string& csv) {
+    baker::BakeConfig c = ctx.base;
+    run.apply(c);
+    c.dering = false; // repack derings each variant as its own bake would
+    const auto start = std::chrono::steady_clock::now();
+    Result<baker::BakeResult> r = baker::bake(ctx.scene, c, ctx.bakeOptions);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (!r) {
+        // A method that cannot bake this scene is a result too: one row saying why.
+        csv += run.method + "," + csvField(run.parameters) + ",,," + number(seconds) +
+               ",0,0,nan,nan,nan,nan,nan,0,nan,nan,nan,nan,nan," +
+               csvField("bake failed: " + r.error().message) + "\n";
+        std::fprintf(stderr, "bench [%zu/%zu] %s %s: bake failed: %s\n", index + 1, ctx.runCount,
+                     run.method.c_str(), run.parameters.c_str(),
+                     terminalText(r.error().message).c_str());
+        return {};
+    }
+    const BakedRun baked{run, index, seconds, r.value()};
+    for (const Variant variant : kVariants) {
+        if (auto v = benchVariant(ctx, baked, variant, csv); !v) {
+            return v;
+        }
+    }
+    return {};
+}
+
+int runBench(const BenchOptions& o) {
+    const auto fail = [](const std::string& message) {
+        printError("bench", message);
+        return kExitFailure;
+    };
+    Result<baker::BakeConfig> config = benchBaseConfig(o);
+    if (!config) {
+        return fail(config.error().message);
+    }
+    const baker::BakeConfig& base = config.value();
+    Result<BenchScene> loaded = loadBenchScene(o, base);
+    if (!loaded) {
+        return fail(loaded.error().message);
+    }
+    const BenchScene& in = loaded.value();
     baker::BakeOptions bake_options;
     bake_options.threads = o.threads;
 
     // The reference: reused when it exists (and matches), else baked and written.
-    const std::filesystem::path out_path(o.out);
-    const std::filesystem::path ref_path =
-        o.reference.empty()
-            ? out_path.parent_path() / (out_path.stem().string() + "-reference.pvol")
-            : std::filesystem::path(o.reference);
-    const uint64_t ref_seed = base.seed + kReferenceSeedOffset;
-    PvolFile reference;
-    if (std::filesystem::exists(ref_path)) {
-        Result<PvolFile> r = readPvol(ref_path);
-        if (!r) {
-            return fail(r.error().message);
-        }
-        if (auto ok = checkReference(r.value(), placed.value(), scene.value(), base.seed); !ok) {
-            return fail(ref_path.string() + ": does not match: " + ok.error().message);
-        }
-        reference = std::move(r).value();
-        std::fprintf(stderr, "bench: reusing reference %s (path, %u samples)\n",
-                     ref_path.string().c_str(), referenceSamplesOf(reference));
-    } else {
-        baker::BakeConfig rc = base;
-        rc.method = baker::Method::Path;
-        rc.dering = false; // the reference keeps the path method's own coefficients
-        rc.seed = ref_seed;
-        rc.path.samples =
-            o.referenceSamples.value_or(o.quick ? kReferenceSamplesQuick : kReferenceSamplesFull);
-        std::fprintf(stderr, "bench: baking the reference (path, %u samples, %u bounces) -> %s\n",
-                     rc.path.samples, rc.path.maxBounces, ref_path.string().c_str());
-        Result<baker::BakeResult> r = baker::bake(scene.value(), rc, bake_options);
-        if (!r) {
-            return fail("reference: " + r.error().message);
-        }
-        if (auto w = writePvol(ref_path, r.value().file); !w) {
-            return fail(w.error().message);
-        }
-        std::fprintf(stderr, "bench: reference done in %.1f s\n", r.value().stats.seconds);
-        reference = std::move(r).value().file;
+    const std::filesystem::path ref_path = referencePath(o);
+    Result<PvolFile> reference = std::filesystem::exists(ref_path)
+                                     ? reuseReference(ref_path, in, base.seed)
+                                     : bakeReference(o, in.scene, base, bake_options, ref_path);
+    if (!reference) {
+        return fail(reference.error().message);
     }
-    const auto dark = darkProbes(reference);
+    const auto dark = darkProbes(reference.value());
 
-    Result<runtime::SurfaceReferenceImage> surface = surfaceReference(o, scene.value(), ref_seed);
+    const uint64_t ref_seed = base.seed + kReferenceSeedOffset;
+    Result<runtime::SurfaceReferenceImage> surface = surfaceReference(o, in.scene, ref_seed);
     if (!surface) {
         return fail("surface reference: " + surface.error().message);
     }
-    {
-        Result<runtime::SurfaceError> self =
-            runtime::compareSurface(surface.value().irradiance, surface.value());
-        std::fprintf(stderr,
-                     "bench: surface reference %ux%u from %s, %zu pixels compared, median "
-                     "relative noise %.4f (a perfect volume measures a median error of about "
-                     "%.4f)\n",
-                     surface.value().width, surface.value().height,
-                     o.surfaceView.camera.empty() ? o.surfaceView.cameraFrom.c_str() : "--camera",
-                     self ? self.value().compared : size_t(0),
-                     self ? self.value().referenceNoise : 0.0,
-                     self ? self.value().noiseFloor : 0.0);
-    }
+    reportSurfaceReference(o, surface.value());
 
     std::string csv = kCsvHeader;
     const std::vector<Run> runs = sweep(o.quick);
+    const BenchContext ctx{o,    in.scene,        base,       bake_options, reference.value(),
+                           dark, surface.value(), runs.size()};
     for (size_t ri = 0; ri < runs.size(); ++ri) {
-        const Run& run = runs[ri];
-        baker::BakeConfig c = base;
-        run.apply(c);
-        c.dering = false; // repack derings each variant as its own bake would
-        const auto start = std::chrono::steady_clock::now();
-        Result<baker::BakeResult> r = baker::bake(scene.value(), c, bake_options);
-        const double seconds =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-        if (!r) {
-            // A method that cannot bake this scene is a result too: one row saying why.
-            csv += run.method + "," + csvField(run.parameters) + ",,," + number(seconds) +
-                   ",0,0,nan,nan,nan,nan,nan,0,nan,nan,nan,nan,nan," +
-                   csvField("bake failed: " + r.error().message) + "\n";
-            std::fprintf(stderr, "bench [%zu/%zu] %s %s: bake failed: %s\n", ri + 1, runs.size(),
-                         run.method.c_str(), run.parameters.c_str(),
-                         terminalText(r.error().message).c_str());
-        }
-        for (const Variant variant : kVariants) {
-            if (!r) {
-                break;
-            }
-            const std::string format(toString(variant.storage));
-            const std::string order = variant.order == sh::Order::L1 ? "L1" : "L2";
-            const std::string prefix = run.method + "," + csvField(run.parameters) + "," + format +
-                                       "," + order + "," + number(seconds) + "," +
-                                       std::to_string(r.value().stats.rays) + ",";
-            Result<PvolFile> packed = repack(r.value().file, variant, base.dering);
-            if (!packed) {
-                csv += prefix + "0,nan,nan,nan,nan,nan," +
-                       std::to_string(r.value().stats.invalidProbes) + ",nan,nan,nan,nan,nan," +
-                       csvField("saturated: " + packed.error().message) + "\n";
-                std::fprintf(stderr, "bench [%zu/%zu] %s %s %s %s: %s\n", ri + 1, runs.size(),
-                             run.method.c_str(), run.parameters.c_str(), format.c_str(),
-                             order.c_str(), terminalText(packed.error().message).c_str());
-                continue;
-            }
-            Result<runtime::VolumeError> e =
-                runtime::compareVolumes(packed.value().volumes, reference.volumes);
-            if (!e) {
-                return fail(e.error().message);
-            }
-            uint64_t bytes = 0;
-            for (const Volume& v : packed.value().volumes) {
-                bytes += v.texelBytes();
-            }
-            const ExtraFigures f = extraFigures(packed.value(), reference, dark);
-            Result<runtime::SurfaceError> sf = surfaceFigures(packed.value(), surface.value());
-            if (!sf) {
-                return fail(sf.error().message);
-            }
-            const runtime::SurfaceError& px = sf.value();
-            csv += prefix + std::to_string(bytes) + "," + number(e.value().relRmse) + "," +
-                   number(e.value().maxProbeErr) + "," + number(e.value().maxAbsErr) + "," +
-                   number(f.darkRatio) + "," + number(f.negativeFraction) + "," +
-                   std::to_string(r.value().stats.invalidProbes) + "," + number(px.medianAbsError) +
-                   "," + number(px.meanRatio) + "," + number(px.shareUnderHalf) + "," +
-                   number(px.shareOverTwo) + "," + number(px.shareNegative) + ",ok\n";
-            if (variant.storage == Storage::Float32 && variant.order == sh::Order::L2) {
-                std::fprintf(stderr,
-                             "bench [%zu/%zu] %-4s %-40s %7.2f s  rel RMSE %.4f  worst probe "
-                             "%.4f  dark ratio %.3f  per pixel: median %.4f, mean ratio %.3f, "
-                             "negative %.4f\n",
-                             ri + 1, runs.size(), run.method.c_str(), run.parameters.c_str(),
-                             seconds, e.value().relRmse, e.value().maxProbeErr, f.darkRatio,
-                             px.medianAbsError, px.meanRatio, px.shareNegative);
-            }
+        if (auto r = benchRun(ctx, runs[ri], ri, csv); !r) {
+            return fail(r.error().message);
         }
         // Rewritten after every run, atomically: an interrupted sweep leaves a complete CSV.
-        if (auto w = writeFileAtomic(out_path, csv); !w) {
+        if (auto w = writeFileAtomic(std::filesystem::path(o.out), csv); !w) {
             return fail(w.error().message);
         }
     }

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "config_options.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/formats/file_io.hpp"
 #include "probekit/formats/pvol.hpp"
@@ -177,101 +178,157 @@ double rms(const std::vector<double>& values) {
     return n > 0 ? std::sqrt(sum / double(n)) : std::nan("");
 }
 
-int runBenchNoise(const BenchNoiseOptions& o) {
-    const auto fail = [](const std::string& message) {
-        printError("bench-noise", message);
-        return kExitFailure;
-    };
-    Result<baker::BakeConfig> loaded = o.config.empty()
-                                           ? Result<baker::BakeConfig>(baker::BakeConfig{})
-                                           : baker::loadBakeConfig(o.config);
+// The three measured configurations and their worst-probe noise (worstNoise).
+struct NoiseResults {
+    NoiseRun adaptive, pilot, fixed;
+    double adaptiveWorst = 0.0, pilotWorst = 0.0, fixedWorst = 0.0;
+    uint32_t fixedSamples = 0;
+};
+
+// The config, refused unless it is what bench-noise measures (method path on dense grids, no
+// target_error), with float storage.
+Result<baker::BakeConfig> noiseBaseConfig(const BenchNoiseOptions& o) {
+    Result<baker::BakeConfig> loaded = loadConfigOrDefaults(o.config);
     if (!loaded) {
-        return fail(loaded.error().message);
+        return loaded;
     }
     baker::BakeConfig base = std::move(loaded).value();
     if (base.method != baker::Method::Path || base.targetError) {
-        return fail(o.config + ": bench-noise measures method path without target_error");
-    }
-    if (base.volumes.empty()) {
-        base.volumes.push_back(baker::VolumeConfig{});
+        return makeError(ErrorCode::InvalidArgument,
+                         o.config + ": bench-noise measures method path without target_error");
     }
     for (baker::VolumeConfig& v : base.volumes) {
         if (v.layout == VolumeLayout::Bricked) {
-            return fail(o.config + ": bench-noise compares dense grids probe by probe");
+            return makeError(ErrorCode::InvalidArgument,
+                             o.config + ": bench-noise compares dense grids probe by probe");
         }
         v.storage = Storage::Float32; // half floats would add their rounding to the noise
     }
+    return base;
+}
+
+// The scene at the config's scale, lit by its environment.
+Result<baker::Scene> loadNoiseScene(const BenchNoiseOptions& o, const baker::BakeConfig& base) {
     baker::LoadOptions load_options;
     load_options.scale = base.scale;
     Result<baker::Scene> scene = baker::loadGltf(o.scene, load_options);
     if (!scene) {
-        return fail(scene.error().message);
+        return scene;
     }
     Result<baker::Environment> env = baker::makeEnvironment(base.environment);
     if (!env) {
-        return fail(env.error().message);
+        return env.error();
     }
     scene.value().environment = std::move(env).value();
+    return scene;
+}
 
+// `base` with fixed sampling: `samples` directions per probe, no noise target.
+baker::BakeConfig fixedSampling(const baker::BakeConfig& base, uint32_t samples) {
+    baker::BakeConfig fixed = base;
+    fixed.path.noiseTarget = 0.0f;
+    fixed.path.samples = samples;
+    return fixed;
+}
+
+// The fixed count that matches adaptive's worst probe: noise falls as 1 / sqrt(samples) probe
+// by probe, so it follows from the pilot's (rounded up to a multiple of 64).
+uint32_t matchedSamples(uint32_t pilot_samples, double pilot_worst, double adaptive_worst) {
+    const double ratio = pilot_worst / adaptive_worst;
+    const double wanted = std::ceil(double(pilot_samples) * ratio * ratio / 64.0) * 64.0;
+    return uint32_t(std::clamp(wanted, 64.0, double(1u << 24)));
+}
+
+// The three measurements: adaptive sampling to the target, fixed sampling at the pilot count,
+// and fixed sampling at the count that matches adaptive's worst probe.
+Result<NoiseResults> measureNoise(const BenchNoiseOptions& o, const baker::Scene& scene,
+                                  const baker::BakeConfig& base) {
+    NoiseResults out;
     // 1. Adaptive sampling to the target, from path.samples.
     baker::BakeConfig adaptive = base;
     adaptive.path.noiseTarget = float(o.target);
     std::fprintf(stderr, "bench-noise: adaptive, noise target %g, %u to %u directions\n", o.target,
                  adaptive.path.samples, adaptive.path.maxSamples);
-    Result<NoiseRun> ad = bakeSeeds(scene.value(), adaptive, o.seeds, o.threads);
+    Result<NoiseRun> ad = bakeSeeds(scene, adaptive, o.seeds, o.threads);
     if (!ad) {
-        return fail(ad.error().message);
+        return ad.error();
     }
-    const double ad_worst = worstNoise(ad.value());
+    out.adaptive = std::move(ad).value();
+    out.adaptiveWorst = worstNoise(out.adaptive);
 
-    // 2. Fixed sampling at the pilot count: noise falls as 1 / sqrt(samples) probe by probe,
-    // so the count that matches adaptive's worst probe follows from it.
-    baker::BakeConfig fixed = base;
-    fixed.path.noiseTarget = 0.0f;
-    fixed.path.samples = o.pilotSamples;
+    // 2. Fixed sampling at the pilot count.
     std::fprintf(stderr, "bench-noise: fixed pilot, %u directions\n", o.pilotSamples);
-    Result<NoiseRun> pilot = bakeSeeds(scene.value(), fixed, o.seeds, o.threads);
+    Result<NoiseRun> pilot =
+        bakeSeeds(scene, fixedSampling(base, o.pilotSamples), o.seeds, o.threads);
     if (!pilot) {
-        return fail(pilot.error().message);
+        return pilot.error();
     }
-    const double pilot_worst = worstNoise(pilot.value());
-    const double ratio = pilot_worst / ad_worst;
-    const double wanted = std::ceil(double(o.pilotSamples) * ratio * ratio / 64.0) * 64.0;
-    fixed.path.samples = uint32_t(std::clamp(wanted, 64.0, double(1u << 24)));
+    out.pilot = std::move(pilot).value();
+    out.pilotWorst = worstNoise(out.pilot);
+    out.fixedSamples = matchedSamples(o.pilotSamples, out.pilotWorst, out.adaptiveWorst);
 
     // 3. Fixed sampling at that count, measured.
-    std::fprintf(stderr, "bench-noise: fixed, %u directions\n", fixed.path.samples);
-    Result<NoiseRun> fx = bakeSeeds(scene.value(), fixed, o.seeds, o.threads);
+    std::fprintf(stderr, "bench-noise: fixed, %u directions\n", out.fixedSamples);
+    Result<NoiseRun> fx =
+        bakeSeeds(scene, fixedSampling(base, out.fixedSamples), o.seeds, o.threads);
     if (!fx) {
-        return fail(fx.error().message);
+        return fx.error();
     }
-    const double fx_worst = worstNoise(fx.value());
+    out.fixed = std::move(fx).value();
+    out.fixedWorst = worstNoise(out.fixed);
+    return out;
+}
 
-    const nlohmann::json line = {
+// The results as bench-noise's one JSON line.
+nlohmann::json noiseReport(const BenchNoiseOptions& o, const NoiseResults& r) {
+    const NoiseRun& ad = r.adaptive;
+    const NoiseRun& fx = r.fixed;
+    const double ad_worst = r.adaptiveWorst, fx_worst = r.fixedWorst;
+    return {
         {"scene", o.scene},
         {"noise_target", o.target},
         {"worst_fraction", kWorstFraction},
-        {"adaptive_seconds", ad.value().seconds},
-        {"adaptive_samples_mean", ad.value().meanSamples},
-        {"adaptive_samples_max", ad.value().maxSamples},
+        {"adaptive_seconds", ad.seconds},
+        {"adaptive_samples_mean", ad.meanSamples},
+        {"adaptive_samples_max", ad.maxSamples},
         {"seeds", o.seeds},
-        {"adaptive_probes_over_target", double(ad.value().overTarget) / o.seeds},
+        {"adaptive_probes_over_target", double(ad.overTarget) / o.seeds},
         {"adaptive_worst_noise", ad_worst},
-        {"adaptive_max_noise", maximum(ad.value().noise)},
-        {"adaptive_rms_noise", rms(ad.value().noise)},
+        {"adaptive_max_noise", maximum(ad.noise)},
+        {"adaptive_rms_noise", rms(ad.noise)},
         {"fixed_pilot_samples", o.pilotSamples},
-        {"fixed_pilot_worst_noise", pilot_worst},
-        {"fixed_samples", fixed.path.samples},
-        {"fixed_seconds", fx.value().seconds},
+        {"fixed_pilot_worst_noise", r.pilotWorst},
+        {"fixed_samples", r.fixedSamples},
+        {"fixed_seconds", fx.seconds},
         {"fixed_worst_noise", fx_worst},
-        {"fixed_max_noise", maximum(fx.value().noise)},
-        {"fixed_rms_noise", rms(fx.value().noise)},
-        {"time_ratio", ad.value().seconds / fx.value().seconds},
+        {"fixed_max_noise", maximum(fx.noise)},
+        {"fixed_rms_noise", rms(fx.noise)},
+        {"time_ratio", ad.seconds / fx.seconds},
         // Fixed sampling's time scaled to adaptive's worst noise exactly (noise ~ 1/sqrt(time)).
         {"time_ratio_matched",
-         ad.value().seconds / (fx.value().seconds * (fx_worst / ad_worst) * (fx_worst / ad_worst))},
+         ad.seconds / (fx.seconds * (fx_worst / ad_worst) * (fx_worst / ad_worst))},
         {"worst_noise_over_target", ad_worst / o.target},
     };
+}
+
+int runBenchNoise(const BenchNoiseOptions& o) {
+    const auto fail = [](const std::string& message) {
+        printError("bench-noise", message);
+        return kExitFailure;
+    };
+    Result<baker::BakeConfig> base = noiseBaseConfig(o);
+    if (!base) {
+        return fail(base.error().message);
+    }
+    Result<baker::Scene> scene = loadNoiseScene(o, base.value());
+    if (!scene) {
+        return fail(scene.error().message);
+    }
+    Result<NoiseResults> results = measureNoise(o, scene.value(), base.value());
+    if (!results) {
+        return fail(results.error().message);
+    }
+    const nlohmann::json line = noiseReport(o, results.value());
     std::printf("%s\n", line.dump().c_str());
     if (!o.out.empty()) {
         if (auto w = writeFileAtomic(o.out, line.dump() + "\n"); !w) {

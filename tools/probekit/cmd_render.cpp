@@ -734,65 +734,64 @@ double medianOf(std::vector<double> v) {
     return v.empty() ? std::numeric_limits<double>::quiet_NaN() : median(std::move(v));
 }
 
-int runRenderDynamicGi(const RenderOptions& o) {
+// The inputs of a dynamic-GI render: the scene and its volumes (a placeholder without a .pvol).
+struct GiInputs {
+    baker::Scene scene;
+    bool baked = false;
+    std::vector<Volume> volumes;
+    BakeMetadata metadata;
+};
+
+// The scene and the volumes --dynamic-gi renders, once -o is known to name a writable path.
+Result<GiInputs> loadGiInputs(const RenderOptions& o) {
     Result<std::string> first_path = framePath(o.output, 0);
     if (!first_path) {
-        return fail(first_path.error().message);
+        return first_path.error();
     }
     if (Result<std::filesystem::path> target = resolveOutputPath(first_path.value()); !target) {
-        return fail(target.error().message);
+        return target.error();
     }
     Result<baker::Scene> loaded = loadScene(o);
     if (!loaded) {
-        return fail(loaded.error().message);
+        return loaded.error();
     }
-    const baker::Scene& scene = loaded.value();
-    if (!scene.hasGeometry()) {
-        return fail(o.scene + ": no triangles; dynamic GI relights geometry");
+    GiInputs in;
+    in.scene = std::move(loaded.value());
+    if (!in.scene.hasGeometry()) {
+        return makeError(ErrorCode::InvalidArgument,
+                         o.scene + ": no triangles; dynamic GI relights geometry");
     }
-    const bool baked = !o.volumes.empty();
-    std::vector<Volume> volumes;
-    BakeMetadata metadata;
-    if (baked) {
+    in.baked = !o.volumes.empty();
+    if (in.baked) {
         Result<PvolFile> file = loadVolumes(o);
         if (!file) {
-            return fail(file.error().message);
+            return file.error();
         }
-        volumes = std::move(file.value().volumes);
-        metadata = file.value().metadata;
+        in.volumes = std::move(file.value().volumes);
+        in.metadata = file.value().metadata;
     } else {
-        Result<Volume> placeholder = placeholderVolume(scene);
+        Result<Volume> placeholder = placeholderVolume(in.scene);
         if (!placeholder) {
-            return fail(placeholder.error().message);
+            return placeholder.error();
         }
-        volumes.push_back(std::move(placeholder.value()));
+        in.volumes.push_back(std::move(placeholder.value()));
     }
-    Result<std::unique_ptr<runtime::GpuContext>> context = createContext();
-    if (!context) {
-        return fail(context.error().message);
-    }
-    runtime::GpuContext& gpu = *context.value();
-    Result<runtime::GpuVolumeSet> set = uploadVolumes(gpu, volumes, o);
-    if (!set) {
-        return fail(set.error().message);
-    }
-    Result<Environment> environment = chooseEnvironment(o, metadata);
-    if (!environment) {
-        return fail(environment.error().message);
-    }
-    Result<runtime::Renderer> renderer = createRenderer(gpu, scene, environment.value());
-    if (!renderer) {
-        return fail(renderer.error().message);
-    }
-    Result<runtime::FrameSettings> frame_settings = frameSettings(o, scene, volumes);
-    if (!frame_settings) {
-        return fail(frame_settings.error().message);
-    }
-    runtime::FrameSettings settings = frame_settings.value();
+    return in;
+}
 
-    // The dynamic lights: the scene's directional light (made for --sun-path when there is
-    // none); without a volume every punctual light, since nothing else lights the scene.
+// The dynamic lights and which of them is the sun (lights.size() when none is).
+struct GiLights {
     std::vector<PunctualLight> lights;
+    size_t sun = 0;
+
+    PunctualLight* sunLight() { return sun < lights.size() ? &lights[sun] : nullptr; }
+};
+
+// The dynamic lights: the scene's directional light (made for --sun-path when there is
+// none); without a volume every punctual light, since nothing else lights the scene.
+GiLights dynamicLights(const RenderOptions& o, const baker::Scene& scene, bool baked) {
+    GiLights out;
+    std::vector<PunctualLight>& lights = out.lights;
     for (const PunctualLight& light : scene.lights) {
         if ((!baked || light.type == LightType::Directional) &&
             lights.size() < runtime::kMaxGiLights) {
@@ -810,13 +809,12 @@ int runRenderDynamicGi(const RenderOptions& o) {
         lights.insert(lights.begin(), made);
         sun = lights.begin();
     }
-    const bool sky = !environment.value().isBlack();
-    if (lights.empty() && !sky) {
-        printError("render", "warning: " + o.scene +
-                                 ": no dynamic light (no directional light, no --sun-path) and "
-                                 "no sky: the dynamic GI stays black");
-    }
+    out.sun = size_t(sun - lights.begin());
+    return out;
+}
 
+// The cascades the --gi-* options ask for.
+runtime::DynamicGiSettings giSettingsFor(const RenderOptions& o, const baker::Scene& scene) {
     runtime::DynamicGiSettings gi_settings;
     gi_settings.cascades = o.giCascades;
     gi_settings.resolution = o.giResolution;
@@ -834,50 +832,69 @@ int runRenderDynamicGi(const RenderOptions& o) {
     if (o.giCell <= 0.0f) {
         gi_settings.aheadFraction = 0.0f;
     }
-    Result<runtime::DynamicGi> gi = runtime::DynamicGi::create(gpu, gi_settings);
-    if (!gi) {
-        return fail(gi.error().message);
+    return gi_settings;
+}
+
+// Gives the dynamic GI its geometry, its sky (unless the environment is black) and its camera.
+Result<void> prepareGi(runtime::DynamicGi& gi, const RenderOptions& o, const baker::Scene& scene,
+                       const FlatScene& flat, const Environment& environment,
+                       const runtime::Camera& camera) {
+    if (auto r = gi.setGeometry(flat.vertices, flat.indices); !r) {
+        return r;
     }
-    const FlatScene flat = flatten(scene);
-    if (auto r = gi.value().setGeometry(flat.vertices, flat.indices); !r) {
-        return fail(r.error().message);
-    }
-    if (sky) {
-        gi.value().setSky(skySh(environment.value()));
+    if (!environment.isBlack()) {
+        gi.setSky(skySh(environment));
     }
     // The camera places the cascades; by default they are centred on the scene (one cascade
     // holds it), otherwise ahead of the camera.
-    const glm::vec3 forward = glm::normalize(settings.camera.target - settings.camera.eye);
-    gi.value().setCamera(o.giCell > 0.0f ? settings.camera.eye : scene.bounds.center(), forward);
+    const glm::vec3 forward = glm::normalize(camera.target - camera.eye);
+    gi.setCamera(o.giCell > 0.0f ? camera.eye : scene.bounds.center(), forward);
+    return {};
+}
 
-    settings.dynamicGi = nullptr;
-    settings.bakedLight = baked;
-    settings.directLight = true;
+// What the dynamic-GI frames and --bench share, made once by runRenderDynamicGi.
+struct GiRun {
+    const RenderOptions& o;
+    runtime::GpuContext& gpu;
+    runtime::Renderer& renderer;
+    runtime::GpuVolumeSet& set;
+    runtime::DynamicGi& gi;
+    const runtime::DynamicGiSettings& giSettings;
+    const FlatScene& flat;
+    runtime::FrameSettings& settings; // the frames' last lights stay in it for --bench
+    GiLights& lights;
+    bool baked;
+};
+
+// Renders and writes the --frames frames, the sun moved along --sun-path and the GI updated
+// for each.
+Result<void> renderGiFrames(GiRun& run) {
+    const RenderOptions& o = run.o;
     for (int f = 0; f < o.frames; ++f) {
         if (!o.sunPath.empty()) {
-            sun->direction = sunTravel(o, f);
+            run.lights.sunLight()->direction = sunTravel(o, f);
         }
-        if (auto r = gi.value().setLights(lights); !r) {
-            return fail(r.error().message);
+        if (auto r = run.gi.setLights(run.lights.lights); !r) {
+            return r;
         }
-        Result<runtime::GiUpdateStats> stats = gi.value().update(uint64_t(f));
+        Result<runtime::GiUpdateStats> stats = run.gi.update(uint64_t(f));
         if (!stats) {
-            return fail(stats.error().message);
+            return stats.error();
         }
-        const runtime::GiShadingInputs inputs = gi.value().shadingInputs();
-        settings.dynamicGi = &inputs;
-        settings.lights = lights;
-        Result<runtime::Frame> frame = renderer.value().render(set.value(), settings);
+        const runtime::GiShadingInputs inputs = run.gi.shadingInputs();
+        run.settings.dynamicGi = &inputs;
+        run.settings.lights = run.lights.lights;
+        Result<runtime::Frame> frame = run.renderer.render(run.set, run.settings);
         if (!frame) {
-            return fail(frame.error().message);
+            return frame.error();
         }
         Result<std::string> path = framePath(o.output, f);
         std::string error;
         const Display display = chooseDisplay(o, frame.value());
         if (!writeImage(path.value(), frame.value(), o, display, error)) {
-            return fail(error);
+            return makeError(ErrorCode::Io, error);
         }
-        const runtime::GiTimings t = gi.value().timings();
+        const runtime::GiTimings t = run.gi.timings();
         if (o.bench == 0) {
             std::printf("wrote %s: frame %d, %s view; GI %u dispatches (%u cascades), "
                         "occupancy %.2f ms, inject %.2f ms, propagate %.2f ms, resolve %.2f ms; "
@@ -887,110 +904,207 @@ int runRenderDynamicGi(const RenderOptions& o) {
                         t.injectMs, t.propagateMs, t.resolveMs, frame.value().timings.shadeMs);
         }
     }
-    if (o.bench == 0) {
-        return kExitOk;
-    }
+    return {};
+}
 
-    // --bench N: N updates, each with the sun turned by twice the threshold so every one is a
-    // full relight (the geometry volume is rebuilt once, by the first: it is timed apart), then
-    // N frames shaded with the GI and N of the baked-only pass.
-    std::vector<double> occupancy, inject, propagate, resolve, shade, shade_baked;
-    PunctualLight* moving = sun != lights.end() ? &*sun : nullptr;
+// --bench's GPU times in milliseconds, one per timed update or frame.
+struct GiBenchTimes {
+    std::vector<double> occupancy, inject, propagate, resolve, shade, shadeBaked;
+};
+
+// N updates, each with the sun turned by twice the threshold so every one is a full relight
+// (the geometry volume is rebuilt once, by the first: it is timed apart).
+Result<void> timeGiUpdates(GiRun& run, GiBenchTimes& times) {
+    const RenderOptions& o = run.o;
+    PunctualLight* moving = run.lights.sunLight();
     for (int i = 0; i < o.bench + kWarmupFrames; ++i) {
         if (moving) {
-            const float angle = 2.0f * gi_settings.angleThreshold * float(i % 2 == 0 ? 1 : -1);
+            const float angle = 2.0f * run.giSettings.angleThreshold * float(i % 2 == 0 ? 1 : -1);
             const glm::vec3 d = moving->direction;
             moving->direction = glm::vec3(d.x * std::cos(angle) - d.z * std::sin(angle), d.y,
                                           d.x * std::sin(angle) + d.z * std::cos(angle));
-            if (auto r = gi.value().setLights(lights); !r) {
-                return fail(r.error().message);
+            if (auto r = run.gi.setLights(run.lights.lights); !r) {
+                return r;
             }
-        } else if (auto r = gi.value().setGeometry(flat.vertices, flat.indices); !r) {
-            return fail(r.error().message);
+        } else if (auto r = run.gi.setGeometry(run.flat.vertices, run.flat.indices); !r) {
+            return r;
         }
-        Result<runtime::GiUpdateStats> stats = gi.value().update(uint64_t(o.frames + i));
+        Result<runtime::GiUpdateStats> stats = run.gi.update(uint64_t(o.frames + i));
         if (!stats) {
-            return fail(stats.error().message);
+            return stats.error();
         }
-        const runtime::GiTimings t = gi.value().timings();
+        const runtime::GiTimings t = run.gi.timings();
         if (i >= kWarmupFrames) {
             if (stats.value().geometryRebuilt) {
-                occupancy.push_back(t.occupancyMs);
+                times.occupancy.push_back(t.occupancyMs);
             }
-            inject.push_back(t.injectMs);
-            propagate.push_back(t.propagateMs);
-            resolve.push_back(t.resolveMs);
+            times.inject.push_back(t.injectMs);
+            times.propagate.push_back(t.propagateMs);
+            times.resolve.push_back(t.resolveMs);
         }
     }
-    // The geometry volume alone: rebuilt by a geometry change.
-    for (int i = 0; i < std::min(o.bench, 8) && occupancy.empty(); ++i) {
-        if (auto r = gi.value().setGeometry(flat.vertices, flat.indices); !r) {
-            return fail(r.error().message);
+    return {};
+}
+
+// The geometry volume alone, when no timed update rebuilt it: rebuilt by a geometry change.
+Result<void> timeGiOccupancy(GiRun& run, GiBenchTimes& times) {
+    const RenderOptions& o = run.o;
+    for (int i = 0; i < std::min(o.bench, 8) && times.occupancy.empty(); ++i) {
+        if (auto r = run.gi.setGeometry(run.flat.vertices, run.flat.indices); !r) {
+            return r;
         }
         Result<runtime::GiUpdateStats> stats =
-            gi.value().update(uint64_t(o.frames + o.bench + kWarmupFrames + i));
+            run.gi.update(uint64_t(o.frames + o.bench + kWarmupFrames + i));
         if (!stats) {
-            return fail(stats.error().message);
+            return stats.error();
         }
-        occupancy.push_back(gi.value().timings().occupancyMs);
+        times.occupancy.push_back(run.gi.timings().occupancyMs);
     }
-    const runtime::GiShadingInputs inputs = gi.value().shadingInputs();
-    for (int i = 0; i < o.bench + kWarmupFrames; ++i) {
-        for (int pass = 0; pass < (baked ? 2 : 1); ++pass) {
-            runtime::FrameSettings s = settings;
+    return {};
+}
+
+// N frames shaded with the GI and, with a volume, N of the baked-only pass.
+Result<void> timeGiShading(GiRun& run, GiBenchTimes& times) {
+    const runtime::GiShadingInputs inputs = run.gi.shadingInputs();
+    for (int i = 0; i < run.o.bench + kWarmupFrames; ++i) {
+        for (int pass = 0; pass < (run.baked ? 2 : 1); ++pass) {
+            runtime::FrameSettings s = run.settings;
             s.readbackColor = false;
             s.dynamicGi = pass == 0 ? &inputs : nullptr;
-            Result<runtime::Frame> frame = renderer.value().render(set.value(), s);
+            Result<runtime::Frame> frame = run.renderer.render(run.set, s);
             if (!frame) {
-                return fail(frame.error().message);
+                return frame.error();
             }
             if (i >= kWarmupFrames) {
-                (pass == 0 ? shade : shade_baked).push_back(frame.value().timings.shadeMs);
+                (pass == 0 ? times.shade : times.shadeBaked)
+                    .push_back(frame.value().timings.shadeMs);
             }
         }
     }
-    nlohmann::json bench = {
-        {"device", gpu.deviceInfo().name},
-        {"width", settings.width},
-        {"height", settings.height},
-        {"view", o.view},
-        {"frames", o.bench},
-        {"gi_cascades", gi_settings.cascades},
-        {"gi_resolution", gi_settings.resolution},
-        {"gi_iterations", gi_settings.iterations},
-        {"gi_bounces", gi_settings.bounces},
-        {"gi_gpu_mib", double(gi.value().gpuBytes()) / (1024.0 * 1024.0)},
-        {"gi_occupancy_ms", medianOf(occupancy)},
-        {"gi_inject_ms", medianOf(inject)},
-        {"gi_propagate_ms", medianOf(propagate)},
-        {"gi_resolve_ms", medianOf(resolve)},
-        {"gi_relight_ms", medianOf(inject) + medianOf(propagate) + medianOf(resolve)},
-        {"shade_ms", medianOf(shade)}};
-    if (baked) {
-        bench["shade_baked_only_ms"] = medianOf(shade_baked);
+    return {};
+}
+
+// Prints --bench's medians as one JSON line.
+void printGiBench(const GiRun& run, const GiBenchTimes& times) {
+    const runtime::DynamicGiSettings& gi_settings = run.giSettings;
+    nlohmann::json bench = {{"device", run.gpu.deviceInfo().name},
+                            {"width", run.settings.width},
+                            {"height", run.settings.height},
+                            {"view", run.o.view},
+                            {"frames", run.o.bench},
+                            {"gi_cascades", gi_settings.cascades},
+                            {"gi_resolution", gi_settings.resolution},
+                            {"gi_iterations", gi_settings.iterations},
+                            {"gi_bounces", gi_settings.bounces},
+                            {"gi_gpu_mib", double(run.gi.gpuBytes()) / (1024.0 * 1024.0)},
+                            {"gi_occupancy_ms", medianOf(times.occupancy)},
+                            {"gi_inject_ms", medianOf(times.inject)},
+                            {"gi_propagate_ms", medianOf(times.propagate)},
+                            {"gi_resolve_ms", medianOf(times.resolve)},
+                            {"gi_relight_ms", medianOf(times.inject) + medianOf(times.propagate) +
+                                                  medianOf(times.resolve)},
+                            {"shade_ms", medianOf(times.shade)}};
+    if (run.baked) {
+        bench["shade_baked_only_ms"] = medianOf(times.shadeBaked);
     }
     std::printf("%s\n", jsonText(bench).c_str());
+}
+
+// --bench N: the GI's relight and geometry times, then the shading pass's, printed as JSON.
+Result<void> benchDynamicGi(GiRun& run) {
+    GiBenchTimes times;
+    if (auto r = timeGiUpdates(run, times); !r) {
+        return r;
+    }
+    if (auto r = timeGiOccupancy(run, times); !r) {
+        return r;
+    }
+    if (auto r = timeGiShading(run, times); !r) {
+        return r;
+    }
+    printGiBench(run, times);
+    return {};
+}
+
+int runRenderDynamicGi(const RenderOptions& o) {
+    Result<GiInputs> inputs = loadGiInputs(o);
+    if (!inputs) {
+        return fail(inputs.error().message);
+    }
+    const GiInputs& in = inputs.value();
+    const baker::Scene& scene = in.scene;
+    Result<std::unique_ptr<runtime::GpuContext>> context = createContext();
+    if (!context) {
+        return fail(context.error().message);
+    }
+    runtime::GpuContext& gpu = *context.value();
+    Result<runtime::GpuVolumeSet> set = uploadVolumes(gpu, in.volumes, o);
+    if (!set) {
+        return fail(set.error().message);
+    }
+    Result<Environment> environment = chooseEnvironment(o, in.metadata);
+    if (!environment) {
+        return fail(environment.error().message);
+    }
+    Result<runtime::Renderer> renderer = createRenderer(gpu, scene, environment.value());
+    if (!renderer) {
+        return fail(renderer.error().message);
+    }
+    Result<runtime::FrameSettings> frame_settings = frameSettings(o, scene, in.volumes);
+    if (!frame_settings) {
+        return fail(frame_settings.error().message);
+    }
+    runtime::FrameSettings settings = frame_settings.value();
+    GiLights lights = dynamicLights(o, scene, in.baked);
+    if (lights.lights.empty() && environment.value().isBlack()) {
+        printError("render", "warning: " + o.scene +
+                                 ": no dynamic light (no directional light, no --sun-path) and "
+                                 "no sky: the dynamic GI stays black");
+    }
+    const runtime::DynamicGiSettings gi_settings = giSettingsFor(o, scene);
+    Result<runtime::DynamicGi> gi = runtime::DynamicGi::create(gpu, gi_settings);
+    if (!gi) {
+        return fail(gi.error().message);
+    }
+    const FlatScene flat = flatten(scene);
+    if (auto r = prepareGi(gi.value(), o, scene, flat, environment.value(), settings.camera); !r) {
+        return fail(r.error().message);
+    }
+    settings.dynamicGi = nullptr;
+    settings.bakedLight = in.baked;
+    settings.directLight = true;
+    GiRun run{o,           gpu,  renderer.value(), set.value(), gi.value(),
+              gi_settings, flat, settings,         lights,      in.baked};
+    if (auto r = renderGiFrames(run); !r) {
+        return fail(r.error().message);
+    }
+    if (o.bench == 0) {
+        return kExitOk;
+    }
+    if (auto r = benchDynamicGi(run); !r) {
+        return fail(r.error().message);
+    }
     return kExitOk;
 }
 
-} // namespace
-
-void addRenderCommand(CLI::App& app, Command& selected) {
-    auto o = std::make_shared<RenderOptions>();
-    CLI::App* cmd = app.add_subcommand(
-        "render", "Render a glTF scene lit by a .pvol with the Vulkan runtime (headless)");
-    cmd->add_option("SCENE", o->scene, "glTF scene (.gltf or .glb)")->required();
-    cmd->add_option("VOLUME", o->volumes,
+// The scene, the volumes and the image to write, with its framing.
+void addRenderInputOptions(CLI::App* cmd, RenderOptions& o) {
+    cmd->add_option("SCENE", o.scene, "glTF scene (.gltf or .glb)")->required();
+    cmd->add_option("VOLUME", o.volumes,
                     "the .pvol lighting it (optional with --dynamic-gi: dynamic GI alone)");
-    cmd->add_option("-o,--output", o->output, "image to write: .png (8-bit sRGB) or .exr (float)")
+    cmd->add_option("-o,--output", o.output, "image to write: .png (8-bit sRGB) or .exr (float)")
         ->required()
         ->check([](const std::string& path) {
             const std::string ext = extensionOf(path);
             return ext == ".png" || ext == ".exr" ? std::string()
                                                   : "the output must end in .png or .exr";
         });
-    addCameraOptions(cmd, o->framing);
-    cmd->add_option("--view", o->view,
+    addCameraOptions(cmd, o.framing);
+}
+
+// What the image shows, its exposure and what is drawn where no geometry is.
+void addRenderViewOptions(CLI::App* cmd, RenderOptions& o) {
+    cmd->add_option("--view", o.view,
                     "shaded (albedo/pi x E + emission), irradiance (E, W/m^2), probes (spheres "
                     "lit by their own SH; for bricked volumes flat spheres coloured by brick "
                     "level: 0 blue, 1 green, 2 yellow, 3 magenta), validity (invalid probes "
@@ -1002,70 +1116,89 @@ void addRenderCommand(CLI::App& app, Command& selected) {
         ->check(CLI::IsMember({"shaded", "irradiance", "probes", "validity", "leak", "gi-lpv",
                                "gi-geometry", "gi-ao"}))
         ->capture_default_str();
-    cmd->add_option("--exposure", o->exposure,
+    cmd->add_option("--exposure", o.exposure,
                     "stops added to the exposure: PNG scales by 2^(auto EV + EV) before the ACES "
                     "filmic curve (auto EV brings the log-average luminance to 0.18); EXR is "
                     "linear, scaled by 2^EV alone")
         ->capture_default_str();
-    cmd->add_flag("--fixed-exposure", o->fixedExposure,
+    cmd->add_flag("--fixed-exposure", o.fixedExposure,
                   "no automatic exposure: PNG scales by 2^EV alone before the tone curve");
-    cmd->add_option("--env", o->env,
+    cmd->add_option("--env", o.env,
                     "background where no geometry is (shaded and probes views): constant "
                     "radiance R,G,B (W/sr/m^2), a lat-long image FILE, or none (default: the "
                     "environment the volumes were baked with, from the .pvol's settings)");
-    cmd->add_option("--bench", o->bench,
+}
+
+// --bench and the options that change how the volumes are sampled and lit.
+void addRenderShadingOptions(CLI::App* cmd, RenderOptions& o) {
+    cmd->add_option("--bench", o.bench,
                     "after warm-up, time N frames of the shading pass and of its fetch-only "
                     "floor, and the volume upload; print one JSON line. Volumes with visibility "
                     "are also timed without it (frames alternating): shade_no_visibility_ms, "
                     "shade_visibility_over_none")
         ->check(CLI::Range(1, 100000));
-    cmd->add_flag("--no-visibility", o->noVisibility,
+    cmd->add_flag("--no-visibility", o.noVisibility,
                   "drop the volumes' visibility data before upload: plain trilinear "
                   "interpolation, as for volumes baked without it (compare with and without)");
-    cmd->add_flag("--direct-light", o->directLight,
+    cmd->add_flag("--direct-light", o.directLight,
                   "add unshadowed direct light from the scene's punctual lights (for volumes "
                   "baked without it)");
-    cmd->add_option("--normal-offset", o->normalOffset,
+    cmd->add_option("--normal-offset", o.normalOffset,
                     "metres along the normal to move each shading point before sampling "
                     "(against self-leaking; 0 matches probekit sample)")
         ->capture_default_str();
-    cmd->add_flag("--dynamic-gi", o->dynamicGi,
+}
+
+// --dynamic-gi and its settings.
+void addDynamicGiOptions(CLI::App* cmd, RenderOptions& o) {
+    cmd->add_flag("--dynamic-gi", o.dynamicGi,
                   "relight with the runtime's dynamic GI (light propagation cascades in Vulkan "
                   "compute) from the scene's directional light and --env's sky, added to the "
                   "volume's light (the bake must not hold the sun) or alone without a volume; "
                   "the sun's direct light is shaded with its shadow marched through the GI's "
                   "geometry volume");
-    cmd->add_option("--sun-path", o->sunPath,
+    cmd->add_option("--sun-path", o.sunPath,
                     "with --dynamic-gi: az0,el0,az1,el1 in degrees; the sun (the scene's "
                     "directional light, or a 3 W/m^2 white one) moves from the first azimuth "
                     "and elevation to the second over --frames frames (azimuth 0 = the sun in "
                     "+z, 90 = in +x)")
         ->delimiter(',')
         ->expected(4);
-    cmd->add_option("--frames", o->frames,
-                    "frames to render (one image each: put %d or %03d in -o)")
+    cmd->add_option("--frames", o.frames, "frames to render (one image each: put %d or %03d in -o)")
         ->check(CLI::Range(1, 100000))
         ->capture_default_str();
-    cmd->add_option("--gi-cascades", o->giCascades, "dynamic GI cascades, 1..4")
+    cmd->add_option("--gi-cascades", o.giCascades, "dynamic GI cascades, 1..4")
         ->check(CLI::Range(1u, 4u))
         ->capture_default_str();
-    cmd->add_option("--gi-resolution", o->giResolution, "cells per cascade axis, 32 or 64")
+    cmd->add_option("--gi-resolution", o.giResolution, "cells per cascade axis, 32 or 64")
         ->check(CLI::IsMember({32u, 64u}))
         ->capture_default_str();
-    cmd->add_option("--gi-cell", o->giCell,
+    cmd->add_option("--gi-cell", o.giCell,
                     "finest cell size in metres (default: the scene's longest side / "
                     "(resolution - 2), so one cascade holds the scene)")
         ->check(CLI::PositiveNumber);
-    cmd->add_option("--gi-iterations", o->giIterations, "propagation steps per bounce, 1..256")
+    cmd->add_option("--gi-iterations", o.giIterations, "propagation steps per bounce, 1..256")
         ->check(CLI::Range(1u, 256u))
         ->capture_default_str();
-    cmd->add_option("--gi-bounces", o->giBounces, "surface bounces, 1..4")
+    cmd->add_option("--gi-bounces", o.giBounces, "surface bounces, 1..4")
         ->check(CLI::Range(1u, 4u))
         ->capture_default_str();
-    cmd->add_option("--gi-quality", o->giQuality,
+    cmd->add_option("--gi-quality", o.giQuality,
                     "l1, or zonal (a zonal band 2 hallucinated from L1)")
         ->check(CLI::IsMember({"l1", "zonal"}))
         ->capture_default_str();
+}
+
+} // namespace
+
+void addRenderCommand(CLI::App& app, Command& selected) {
+    auto o = std::make_shared<RenderOptions>();
+    CLI::App* cmd = app.add_subcommand(
+        "render", "Render a glTF scene lit by a .pvol with the Vulkan runtime (headless)");
+    addRenderInputOptions(cmd, *o);
+    addRenderViewOptions(cmd, *o);
+    addRenderShadingOptions(cmd, *o);
+    addDynamicGiOptions(cmd, *o);
     cmd->callback([o, &selected] {
         selected = [o] { return o->dynamicGi ? runRenderDynamicGi(*o) : runRender(*o); };
     });

@@ -315,90 +315,69 @@ struct ErrorOptions {
     bool json = false;
 };
 
-int runError(const ErrorOptions& o) {
-    if (o.test.empty() == o.volume.empty()) {
-        printError("surface-error", "give either TEST.exr or --volume FILE.pvol");
-        return kExitUsage;
+// The irradiance the --volume file's CPU sampler gives at the reference's points and normals.
+Result<std::vector<glm::vec3>> volumeIrradiance(const ErrorOptions& o,
+                                                const runtime::SurfaceReferenceImage& r) {
+    Result<PvolFile> file = readPvol(o.volume);
+    if (!file) {
+        return file.error();
     }
-    if (!o.heatmap.empty()) {
-        if (Result<std::filesystem::path> target = resolveOutputPath(o.heatmap); !target) {
-            printError("surface-error", target.error().message);
-            return kExitFailure;
+    std::vector<Volume>& volumes = file.value().volumes;
+    if (volumes.empty()) {
+        return makeError(ErrorCode::InvalidArgument, o.volume + ": the file holds no volume");
+    }
+    if (o.noVisibility) {
+        for (Volume& v : volumes) {
+            v.visibility.clear();
         }
     }
-    Result<runtime::SurfaceReferenceImage> reference = readReference(o.reference);
-    if (!reference) {
-        printError("surface-error", reference.error().message);
-        return kExitFailure;
+    Result<runtime::VolumeSet> set = runtime::VolumeSet::make(std::move(volumes));
+    if (!set) {
+        return makeError(set.error().code, o.volume + ": " + set.error().message);
     }
-    const runtime::SurfaceReferenceImage& r = reference.value();
     std::vector<glm::vec3> test(r.hit.size(), glm::vec3(0.0f));
-    if (!o.volume.empty()) {
-        Result<PvolFile> file = readPvol(o.volume);
-        if (!file) {
-            printError("surface-error", file.error().message);
-            return kExitFailure;
-        }
-        std::vector<Volume>& volumes = file.value().volumes;
-        if (volumes.empty()) {
-            printError("surface-error", o.volume + ": the file holds no volume");
-            return kExitFailure;
-        }
-        if (o.noVisibility) {
-            for (Volume& v : volumes) {
-                v.visibility.clear();
-            }
-        }
-        Result<runtime::VolumeSet> set = runtime::VolumeSet::make(std::move(volumes));
-        if (!set) {
-            printError("surface-error", o.volume + ": " + set.error().message);
-            return kExitFailure;
-        }
-        for (size_t i = 0; i < r.hit.size(); ++i) {
-            if (r.hit[i]) {
-                test[i] = set.value().irradiance(r.position[i], r.normal[i], o.normalOffset);
-            }
-        }
-    } else {
-        Result<FloatImage> image = readFloatImage(o.test);
-        if (!image) {
-            printError("surface-error", image.error().message);
-            return kExitFailure;
-        }
-        const FloatImage& f = image.value();
-        if (f.width != r.width || f.height != r.height) {
-            printError("surface-error",
-                       o.test + ": " + std::to_string(f.width) + "x" + std::to_string(f.height) +
-                           ", the reference is " + std::to_string(r.width) + "x" +
-                           std::to_string(r.height) + " (render with the same --size and camera)");
-            return kExitFailure;
-        }
-        const size_t stride = f.channels.size();
-        for (size_t i = 0; i < test.size(); ++i) {
-            test[i] = glm::vec3(f.data[i * stride], f.data[i * stride + 1], f.data[i * stride + 2]);
+    for (size_t i = 0; i < r.hit.size(); ++i) {
+        if (r.hit[i]) {
+            test[i] = set.value().irradiance(r.position[i], r.normal[i], o.normalOffset);
         }
     }
-    Result<runtime::SurfaceError> e = runtime::compareSurface(test, r);
-    if (!e) {
-        printError("surface-error", e.error().message);
-        return kExitFailure;
+    return test;
+}
+
+// The irradiance of the TEST.exr render, which must have the reference's size.
+Result<std::vector<glm::vec3>> imageIrradiance(const ErrorOptions& o,
+                                               const runtime::SurfaceReferenceImage& r) {
+    Result<FloatImage> image = readFloatImage(o.test);
+    if (!image) {
+        return image.error();
     }
-    if (!o.heatmap.empty()) {
-        const std::vector<uint8_t> rgb = heatmap(e.value());
-        OIIO::ImageSpec spec(int(r.width), int(r.height), 3, OIIO::TypeDesc::UINT8);
-        spec.attribute("oiio:ColorSpace", "sRGB");
-        if (Result<void> w =
-                encodeAndWrite(o.heatmap, spec, "png", OIIO::TypeDesc::UINT8, rgb.data());
-            !w) {
-            printError("surface-error", w.error().message);
-            return kExitFailure;
-        }
+    const FloatImage& f = image.value();
+    if (f.width != r.width || f.height != r.height) {
+        return makeError(ErrorCode::InvalidArgument,
+                         o.test + ": " + std::to_string(f.width) + "x" + std::to_string(f.height) +
+                             ", the reference is " + std::to_string(r.width) + "x" +
+                             std::to_string(r.height) +
+                             " (render with the same --size and camera)");
     }
-    const runtime::SurfaceError& s = e.value();
-    if (o.json) {
-        std::printf("%s\n", jsonText(errorJson(s)).c_str());
-        return kExitOk;
+    std::vector<glm::vec3> test(r.hit.size(), glm::vec3(0.0f));
+    const size_t stride = f.channels.size();
+    for (size_t i = 0; i < test.size(); ++i) {
+        test[i] = glm::vec3(f.data[i * stride], f.data[i * stride + 1], f.data[i * stride + 2]);
     }
+    return test;
+}
+
+// Writes --heatmap: the figures' log2 ratio per pixel as an sRGB PNG.
+Result<void> writeHeatmap(const std::string& path, const runtime::SurfaceError& e,
+                          const runtime::SurfaceReferenceImage& r) {
+    const std::vector<uint8_t> rgb = heatmap(e);
+    OIIO::ImageSpec spec(int(r.width), int(r.height), 3, OIIO::TypeDesc::UINT8);
+    spec.attribute("oiio:ColorSpace", "sRGB");
+    return encodeAndWrite(path, spec, "png", OIIO::TypeDesc::UINT8, rgb.data());
+}
+
+// Prints the figures as text.
+void printSurfaceError(const runtime::SurfaceError& s) {
     std::printf("%zu surface pixels: %zu compared, %zu at edges, %zu dark in the reference\n"
                 "  median abs error  %.4f   (reference noise %.4f: a perfect image measures "
                 "about %.4f)\n"
@@ -409,6 +388,46 @@ int runError(const ErrorOptions& o) {
                 s.surfacePixels, s.compared, s.edgePixels, s.darkPixels, s.medianAbsError,
                 s.referenceNoise, s.noiseFloor, s.meanRatio, s.shareUnderHalf, s.shareOverTwo,
                 s.shareNegative);
+}
+
+int runError(const ErrorOptions& o) {
+    const auto fail = [](const std::string& message) {
+        printError("surface-error", message);
+        return kExitFailure;
+    };
+    if (o.test.empty() == o.volume.empty()) {
+        printError("surface-error", "give either TEST.exr or --volume FILE.pvol");
+        return kExitUsage;
+    }
+    if (!o.heatmap.empty()) {
+        if (Result<std::filesystem::path> target = resolveOutputPath(o.heatmap); !target) {
+            return fail(target.error().message);
+        }
+    }
+    Result<runtime::SurfaceReferenceImage> reference = readReference(o.reference);
+    if (!reference) {
+        return fail(reference.error().message);
+    }
+    const runtime::SurfaceReferenceImage& r = reference.value();
+    Result<std::vector<glm::vec3>> test =
+        o.volume.empty() ? imageIrradiance(o, r) : volumeIrradiance(o, r);
+    if (!test) {
+        return fail(test.error().message);
+    }
+    Result<runtime::SurfaceError> e = runtime::compareSurface(test.value(), r);
+    if (!e) {
+        return fail(e.error().message);
+    }
+    if (!o.heatmap.empty()) {
+        if (Result<void> w = writeHeatmap(o.heatmap, e.value(), r); !w) {
+            return fail(w.error().message);
+        }
+    }
+    if (o.json) {
+        std::printf("%s\n", jsonText(errorJson(e.value())).c_str());
+        return kExitOk;
+    }
+    printSurfaceError(e.value());
     return kExitOk;
 }
 
