@@ -260,7 +260,7 @@ std::unique_ptr<DistributedBake> DistributedBake::join(int& argc, char**& argv) 
     if (launched_size > 1) {
         std::fprintf(stderr,
                      "probekit: warning: started by an MPI launcher with %d processes, "
-                     "but this build has no MPI support (see the README, Distributed "
+                     "but this build has no MPI support (see docs/baking.md, Distributed "
                      "bakes): each process bakes alone\n",
                      launched_size);
     }
