@@ -3,6 +3,7 @@ file(GLOB_RECURSE sources
     ${SOURCE_DIR}/formats/*.cpp ${SOURCE_DIR}/formats/*.hpp
     ${SOURCE_DIR}/baker/*.cpp ${SOURCE_DIR}/baker/*.hpp
     ${SOURCE_DIR}/runtime/*.cpp ${SOURCE_DIR}/runtime/*.hpp
+    ${SOURCE_DIR}/viewer/*.cpp ${SOURCE_DIR}/viewer/*.hpp
     ${SOURCE_DIR}/tools/*.cpp ${SOURCE_DIR}/tools/*.hpp
     ${SOURCE_DIR}/tests/*.cpp ${SOURCE_DIR}/tests/*.hpp
     ${SOURCE_DIR}/examples/*.cpp)

@@ -39,5 +39,6 @@ check_layer() { # check_layer LAYER INCLUDE_DIRS...
 check_layer formats formats/include
 check_layer runtime runtime/include formats/include shaders
 check_layer baker baker/include formats/include
+check_layer viewer viewer/include baker/include runtime/include formats/include shaders
 echo "$passed passed, $failed failed"
 [[ $failed -eq 0 && $passed -gt 0 ]]

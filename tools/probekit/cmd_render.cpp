@@ -1,11 +1,10 @@
 // `probekit render`: the runtime's headless Vulkan renderer on a glTF scene lit by a .pvol.
 //
-// The scene is loaded here through probekit::baker and flattened to plain triangles (the glTF
-// vertex normals, or face normals where a mesh has none; base-colour factor and uv, with the
-// scene's decoded base-colour images as the renderer's textures; per-vertex emission), so
-// probekit::runtime never sees glTF; the environment comes from --env or the .pvol's recorded
-// bake settings; images are tone mapped (runtime/tonemap.hpp) and written here with OpenImageIO,
-// which the runtime does not link either.
+// The scene is loaded through probekit::baker and put on the renderer by probekit::viewer (the
+// scene flattened to triangles and textures, its lights, the environment from --env or the
+// .pvol's recorded bake settings, the dynamic GI's sky and cascades), so probekit::runtime
+// never sees glTF; images are tone mapped (runtime/tonemap.hpp) and written here with
+// OpenImageIO, which the runtime does not link either.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -32,6 +31,8 @@
 #include "probekit/runtime/gpu_volumes.hpp"
 #include "probekit/runtime/renderer.hpp"
 #include "probekit/runtime/tonemap.hpp"
+#include "probekit/viewer/scene_gi.hpp"
+#include "probekit/viewer/scene_view.hpp"
 #include "terminal_text.hpp"
 
 namespace probekit::cli {
@@ -70,83 +71,6 @@ std::string extensionOf(const std::string& path) {
     std::transform(ext.begin(), ext.end(), ext.begin(),
                    [](unsigned char c) { return char(std::tolower(c)); });
     return ext;
-}
-
-// The renderer's triangles: three vertices each, with the glTF vertex normals (the face normal
-// for all three where any is missing), the base-colour factor and uv where the material has a
-// base-colour texture (sampled per pixel from `textures`, the referenced scene images) and the
-// albedo otherwise, and per-vertex emission. Degenerate triangles have no normal and are
-// skipped. Beyond the renderer's texture limit, materials fall back to albedo sampled per vertex.
-struct FlatScene {
-    std::vector<runtime::RenderVertex> vertices;
-    std::vector<uint32_t> indices;
-    std::vector<int32_t> triangleTextures;
-    std::vector<RgbaImage> textures;
-};
-
-FlatScene flatten(const baker::Scene& scene) {
-    FlatScene out;
-    std::vector<int32_t> texture_of_image(scene.images.size(), -1);
-    bool warned = false;
-    const glm::vec2 corner_bary[3] = {{0.0f, 0.0f}, {1.0f, 0.0f}, {0.0f, 1.0f}};
-    for (uint32_t t = 0; t < scene.triangles.size(); ++t) {
-        const glm::uvec3 tri = scene.triangles[t];
-        const glm::vec3 p[3] = {scene.positions[tri.x], scene.positions[tri.y],
-                                scene.positions[tri.z]};
-        const glm::vec3 cross = glm::cross(p[1] - p[0], p[2] - p[0]);
-        const float length = glm::length(cross);
-        if (!(length > 0.0f) || !std::isfinite(length)) {
-            continue;
-        }
-        glm::vec3 n[3] = {cross / length, cross / length, cross / length};
-        if (scene.normals.size() == scene.positions.size()) {
-            const glm::vec3 given[3] = {scene.normals[tri.x], scene.normals[tri.y],
-                                        scene.normals[tri.z]};
-            if (given[0] != glm::vec3(0.0f) && given[1] != glm::vec3(0.0f) &&
-                given[2] != glm::vec3(0.0f)) {
-                std::copy(std::begin(given), std::end(given), std::begin(n));
-            }
-        }
-        const baker::Material& material = scene.materials[scene.triangleMaterial[t]];
-        int32_t texture = -1;
-        if (material.baseColorTexture >= 0) {
-            int32_t& slot = texture_of_image[size_t(material.baseColorTexture)];
-            if (slot < 0 && out.textures.size() < runtime::kMaxRenderTextures) {
-                slot = int32_t(out.textures.size());
-                out.textures.push_back(scene.images[size_t(material.baseColorTexture)]);
-            } else if (slot < 0 && !warned) {
-                std::fprintf(stderr,
-                             "probekit render: warning: more than %zu base-colour textures; the "
-                             "rest are sampled per vertex\n",
-                             runtime::kMaxRenderTextures);
-                warned = true;
-            }
-            texture = slot;
-        }
-        out.triangleTextures.push_back(texture);
-        for (int k = 0; k < 3; ++k) {
-            out.indices.push_back(uint32_t(out.vertices.size()));
-            const glm::vec3 albedo =
-                texture >= 0 ? material.baseColor : scene.albedoAt(t, corner_bary[k]);
-            out.vertices.push_back(
-                {p[k], n[k], albedo, scene.emissionAt(t, corner_bary[k]), scene.uvs[tri[k]]});
-        }
-    }
-    return out;
-}
-
-// What the default camera frames: the scene, or the volumes when the scene has no triangles.
-grid::Aabb framedBox(const baker::Scene& scene, const std::vector<Volume>& volumes) {
-    if (scene.hasGeometry()) {
-        return scene.bounds;
-    }
-    grid::Aabb box{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
-    for (const Volume& v : volumes) {
-        const grid::Aabb b = v.desc.grid.worldBounds();
-        box.min = glm::min(box.min, b.min);
-        box.max = glm::max(box.max, b.max);
-    }
-    return box;
 }
 
 double median(std::vector<double> values) {
@@ -302,55 +226,35 @@ Result<runtime::GpuVolumeSet> uploadVolumes(runtime::GpuContext& gpu,
 // when they record none, or a file that no longer loads: a warning). Both go through the bake
 // config's own parsing, so --env means here what it means to probekit bake.
 Result<Environment> chooseEnvironment(const RenderOptions& o, const BakeMetadata& metadata) {
-    nlohmann::json env;
-    std::string source;
     if (o.env) {
-        source = "--env";
-        float rgb[3];
-        char tail;
-        if (*o.env == "none") {
-            env = {{"type", "black"}};
-        } else if (std::sscanf(o.env->c_str(), "%f,%f,%f%c", &rgb[0], &rgb[1], &rgb[2], &tail) ==
-                   3) {
-            env = {{"type", "constant"}, {"radiance", {rgb[0], rgb[1], rgb[2]}}};
-        } else {
-            env = {{"type", "latlong"}, {"file", *o.env}};
-        }
-    } else {
-        source = o.volumes + " (its recorded bake settings)";
-        const nlohmann::json recorded =
-            nlohmann::json::parse(metadata.parametersJson, nullptr, false);
-        if (!recorded.is_object() || !recorded.contains("environment")) {
-            return Environment{};
-        }
-        env = recorded["environment"];
+        return viewer::environmentFromSpec(*o.env, "--env");
     }
-    Result<baker::BakeConfig> config =
-        baker::parseBakeConfig(nlohmann::json{{"environment", env}}.dump(), source);
-    if (!config) {
-        return config.error();
+    std::string warning;
+    Result<Environment> recorded =
+        viewer::recordedEnvironment(metadata, o.volumes + " (its recorded bake settings)", warning);
+    if (!warning.empty()) {
+        printError("render", "warning: " + warning);
     }
-    Result<Environment> loaded = baker::makeEnvironment(config.value().environment);
-    if (!loaded && !o.env) {
-        printError("render", "warning: " + loaded.error().message + "; the background stays black");
-        return Environment{};
+    return recorded;
+}
+
+// The scene as the renderer's triangles, its warnings printed.
+viewer::RenderScene flatten(const baker::Scene& scene) {
+    viewer::RenderScene flat = viewer::flattenScene(scene);
+    for (const std::string& w : flat.warnings) {
+        printError("render", "warning: " + w);
     }
-    return loaded;
+    return flat;
 }
 
 // A renderer drawing the scene's triangles with their textures, in front of the environment.
-Result<runtime::Renderer> createRenderer(runtime::GpuContext& gpu, const baker::Scene& scene,
+Result<runtime::Renderer> createRenderer(runtime::GpuContext& gpu, const viewer::RenderScene& flat,
                                          const Environment& environment) {
-    const FlatScene flat = flatten(scene);
     Result<runtime::Renderer> renderer = runtime::Renderer::create(gpu);
     if (!renderer) {
         return renderer;
     }
-    if (auto r = renderer.value().setTextures(flat.textures); !r) {
-        return r.error();
-    }
-    if (auto r = renderer.value().setMeshes(flat.vertices, flat.indices, flat.triangleTextures);
-        !r) {
+    if (auto r = viewer::uploadScene(renderer.value(), flat); !r) {
         return r.error();
     }
     if (auto r = renderer.value().setEnvironment(environment); !r) {
@@ -361,17 +265,13 @@ Result<runtime::Renderer> createRenderer(runtime::GpuContext& gpu, const baker::
 
 // The scene's punctual lights for --direct-light, as many as the renderer takes.
 std::vector<PunctualLight> directLights(const RenderOptions& o, const baker::Scene& scene) {
-    std::vector<PunctualLight> lights;
-    for (const PunctualLight& light : scene.lights) {
-        if (lights.size() == runtime::kMaxRenderLights) {
-            printError("render", "warning: " + o.scene + ": only the first " +
-                                     std::to_string(runtime::kMaxRenderLights) +
-                                     " lights add direct light");
-            break;
-        }
-        lights.push_back(light);
+    viewer::LightSelection selection = viewer::directLights(scene);
+    if (selection.dropped > 0) {
+        printError("render", "warning: " + o.scene + ": only the first " +
+                                 std::to_string(runtime::kMaxRenderLights) +
+                                 " lights add direct light");
     }
-    return lights;
+    return std::move(selection.lights);
 }
 
 // The frame the options ask for: size, camera, view and direct light.
@@ -381,7 +281,8 @@ Result<runtime::FrameSettings> frameSettings(const RenderOptions& o, const baker
     settings.width = o.framing.size[0];
     settings.height = o.framing.size[1];
     const float aspect = float(settings.width) / float(settings.height);
-    Result<runtime::Camera> camera = chooseCamera(o.framing, framedBox(scene, volumes), aspect);
+    Result<runtime::Camera> camera =
+        chooseCamera(o.framing, viewer::framedBox(scene, volumes), aspect);
     if (!camera) {
         return camera.error();
     }
@@ -642,7 +543,8 @@ int runRender(const RenderOptions& o) {
     if (!environment) {
         return fail(environment.error().message);
     }
-    Result<runtime::Renderer> renderer = createRenderer(gpu, scene.value(), environment.value());
+    Result<runtime::Renderer> renderer =
+        createRenderer(gpu, flatten(scene.value()), environment.value());
     if (!renderer) {
         return fail(renderer.error().message);
     }
@@ -692,42 +594,10 @@ Result<std::string> framePath(const std::string& pattern, int f) {
     return pattern.substr(0, at) + number + pattern.substr(i + 1);
 }
 
-// The direction the sun's light travels at frame f of --frames along --sun-path (azimuth 0:
-// the sun stands in +z; 90: in +x; elevation above the horizon), linear in the angles.
+// The direction the sun's light travels at frame f of --frames along --sun-path.
 glm::vec3 sunTravel(const RenderOptions& o, int f) {
     const float t = o.frames > 1 ? float(f) / float(o.frames - 1) : 0.0f;
-    const float az = glm::radians(o.sunPath[0] + t * (o.sunPath[2] - o.sunPath[0]));
-    const float el = glm::radians(o.sunPath[1] + t * (o.sunPath[3] - o.sunPath[1]));
-    return -glm::vec3(std::sin(az) * std::cos(el), std::sin(el), std::cos(az) * std::cos(el));
-}
-
-// The environment's radiance as L2 SH (4096 Fibonacci directions), the dynamic GI's sky.
-sh::ShRgb skySh(const Environment& environment) {
-    constexpr int kDirections = 4096;
-    sh::ShRgb out;
-    const float weight = 4.0f * float(M_PI) / float(kDirections);
-    for (int i = 0; i < kDirections; ++i) {
-        const glm::vec3 w = sh::fibonacciDirection(i, kDirections);
-        const glm::vec3 radiance = environment.radiance(w);
-        const sh::Coeffs y = sh::evalBasis(w);
-        for (int k = 0; k < sh::kMaxCoefficients; ++k) {
-            out.rgb[size_t(k)] += (weight * y[size_t(k)]) * radiance;
-        }
-    }
-    return out;
-}
-
-// Without a .pvol the renderer still takes a volume set: one 2^3 volume of zeros over the scene,
-// whose irradiance the dynamic-GI shading leaves out (FrameSettings::bakedLight false).
-Result<Volume> placeholderVolume(const baker::Scene& scene) {
-    VolumeDesc desc;
-    desc.name = "no-volume";
-    grid::Aabb box = scene.bounds;
-    box.max = glm::max(box.max, box.min + glm::vec3(1e-3f));
-    desc.grid = grid::GridLayout(box, glm::uvec3(2), grid::PositionMode::Corner);
-    desc.shOrder = sh::Order::L1;
-    const std::vector<sh::ShRgb> zeros(8);
-    return makeVolume(desc, zeros);
+    return viewer::sunTravel({o.sunPath[0], o.sunPath[1], o.sunPath[2], o.sunPath[3]}, t);
 }
 
 double medianOf(std::vector<double> v) {
@@ -770,7 +640,7 @@ Result<GiInputs> loadGiInputs(const RenderOptions& o) {
         in.volumes = std::move(file.value().volumes);
         in.metadata = file.value().metadata;
     } else {
-        Result<Volume> placeholder = placeholderVolume(in.scene);
+        Result<Volume> placeholder = viewer::placeholderVolume(in.scene);
         if (!placeholder) {
             return placeholder.error();
         }
@@ -779,77 +649,21 @@ Result<GiInputs> loadGiInputs(const RenderOptions& o) {
     return in;
 }
 
-// The dynamic lights and which of them is the sun (lights.size() when none is).
-struct GiLights {
-    std::vector<PunctualLight> lights;
-    size_t sun = 0;
-
-    PunctualLight* sunLight() { return sun < lights.size() ? &lights[sun] : nullptr; }
-};
-
-// The dynamic lights: the scene's directional light (made for --sun-path when there is
-// none); without a volume every punctual light, since nothing else lights the scene.
-GiLights dynamicLights(const RenderOptions& o, const baker::Scene& scene, bool baked) {
-    GiLights out;
-    std::vector<PunctualLight>& lights = out.lights;
-    for (const PunctualLight& light : scene.lights) {
-        if ((!baked || light.type == LightType::Directional) &&
-            lights.size() < runtime::kMaxGiLights) {
-            lights.push_back(light);
-        }
-    }
-    auto sun = std::find_if(lights.begin(), lights.end(), [](const PunctualLight& l) {
-        return l.type == LightType::Directional;
-    });
-    if (sun == lights.end() && !o.sunPath.empty()) {
-        PunctualLight made;
-        made.type = LightType::Directional;
-        made.intensity = glm::vec3(3.0f);
-        made.name = "sun (--sun-path)";
-        lights.insert(lights.begin(), made);
-        sun = lights.begin();
-    }
-    out.sun = size_t(sun - lights.begin());
-    return out;
-}
-
-// The cascades the --gi-* options ask for.
+// The cascades the --gi-* options ask for: by default one holds the scene, centred on it; with
+// --gi-cell they follow the camera, centred ahead of it (the library's default).
 runtime::DynamicGiSettings giSettingsFor(const RenderOptions& o, const baker::Scene& scene) {
     runtime::DynamicGiSettings gi_settings;
     gi_settings.cascades = o.giCascades;
     gi_settings.resolution = o.giResolution;
-    const glm::vec3 size = scene.bounds.max - scene.bounds.min;
-    const float longest = std::max({size.x, size.y, size.z});
-    gi_settings.cellSize =
-        o.giCell > 0.0f ? o.giCell
-                        : longest / float(o.giResolution - 2) / float(1u << (o.giCascades - 1));
     gi_settings.iterations = o.giIterations;
     gi_settings.bounces = o.giBounces;
     gi_settings.quality =
         o.giQuality == "zonal" ? runtime::GiQuality::L1Zonal : runtime::GiQuality::L1;
-    // The default cell holds the scene in the coarsest cascade: centred on the scene. With
-    // --gi-cell the cascades follow the camera, centred ahead of it (the library's default).
-    if (o.giCell <= 0.0f) {
-        gi_settings.aheadFraction = 0.0f;
+    if (o.giCell > 0.0f) {
+        gi_settings.cellSize = o.giCell;
+        return gi_settings;
     }
-    return gi_settings;
-}
-
-// Gives the dynamic GI its geometry, its sky (unless the environment is black) and its camera.
-Result<void> prepareGi(runtime::DynamicGi& gi, const RenderOptions& o, const baker::Scene& scene,
-                       const FlatScene& flat, const Environment& environment,
-                       const runtime::Camera& camera) {
-    if (auto r = gi.setGeometry(flat.vertices, flat.indices); !r) {
-        return r;
-    }
-    if (!environment.isBlack()) {
-        gi.setSky(skySh(environment));
-    }
-    // The camera places the cascades; by default they are centred on the scene (one cascade
-    // holds it), otherwise ahead of the camera.
-    const glm::vec3 forward = glm::normalize(camera.target - camera.eye);
-    gi.setCamera(o.giCell > 0.0f ? camera.eye : scene.bounds.center(), forward);
-    return {};
+    return viewer::fitCascades(gi_settings, scene);
 }
 
 // What the dynamic-GI frames and --bench share, made once by runRenderDynamicGi.
@@ -860,9 +674,9 @@ struct GiRun {
     runtime::GpuVolumeSet& set;
     runtime::DynamicGi& gi;
     const runtime::DynamicGiSettings& giSettings;
-    const FlatScene& flat;
+    const viewer::RenderScene& flat;
     runtime::FrameSettings& settings; // the frames' last lights stay in it for --bench
-    GiLights& lights;
+    viewer::DynamicLights& lights;
     bool baked;
 };
 
@@ -1046,7 +860,8 @@ int runRenderDynamicGi(const RenderOptions& o) {
     if (!environment) {
         return fail(environment.error().message);
     }
-    Result<runtime::Renderer> renderer = createRenderer(gpu, scene, environment.value());
+    const viewer::RenderScene flat = flatten(scene);
+    Result<runtime::Renderer> renderer = createRenderer(gpu, flat, environment.value());
     if (!renderer) {
         return fail(renderer.error().message);
     }
@@ -1055,7 +870,7 @@ int runRenderDynamicGi(const RenderOptions& o) {
         return fail(frame_settings.error().message);
     }
     runtime::FrameSettings settings = frame_settings.value();
-    GiLights lights = dynamicLights(o, scene, in.baked);
+    viewer::DynamicLights lights = viewer::dynamicLights(scene, in.baked, !o.sunPath.empty());
     if (lights.lights.empty() && environment.value().isBlack()) {
         printError("render", "warning: " + o.scene +
                                  ": no dynamic light (no directional light, no --sun-path) and "
@@ -1066,8 +881,9 @@ int runRenderDynamicGi(const RenderOptions& o) {
     if (!gi) {
         return fail(gi.error().message);
     }
-    const FlatScene flat = flatten(scene);
-    if (auto r = prepareGi(gi.value(), o, scene, flat, environment.value(), settings.camera); !r) {
+    if (auto r = viewer::prepareGi(gi.value(), flat, scene, environment.value(), settings.camera,
+                                   o.giCell <= 0.0f);
+        !r) {
         return fail(r.error().message);
     }
     settings.dynamicGi = nullptr;

@@ -1,0 +1,71 @@
+// probekit::viewer — a glTF scene and its volumes on the runtime renderer.
+//
+// probekit::baker loads scenes and probekit::runtime draws triangles; the two never include each
+// other (ARCHITECTURE.md#layers). This layer joins them for an application that shows a baked
+// scene: the scene flattened to render triangles with its textures, the lights the renderer
+// adds, the camera's framing box, the environment behind the geometry, and a placeholder volume
+// for a scene shown without a .pvol. `probekit render` is one such application. Nothing here
+// prints: warnings are returned for the caller to show.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "probekit/baker/scene.hpp"
+#include "probekit/formats/environment.hpp"
+#include "probekit/formats/grid.hpp"
+#include "probekit/formats/light.hpp"
+#include "probekit/formats/pvol.hpp"
+#include "probekit/formats/result.hpp"
+#include "probekit/formats/volume.hpp"
+#include "probekit/runtime/renderer.hpp"
+
+namespace probekit::viewer {
+
+// The renderer's triangles: three vertices each, with the glTF vertex normals (the face normal
+// for all three where any is missing), the base-colour factor and uv where the material has a
+// base-colour texture (sampled per pixel from `textures`, the referenced scene images) and the
+// albedo otherwise, and per-vertex emission. Degenerate triangles have no normal and are
+// skipped. Beyond the renderer's texture limit (runtime::kMaxRenderTextures), materials fall
+// back to albedo sampled per vertex, with a warning.
+struct RenderScene {
+    std::vector<runtime::RenderVertex> vertices;
+    std::vector<uint32_t> indices;
+    std::vector<int32_t> triangleTextures; // per triangle: index into textures, or -1
+    std::vector<RgbaImage> textures;
+    std::vector<std::string> warnings;
+};
+
+RenderScene flattenScene(const baker::Scene& scene);
+
+// Gives the renderer the scene's textures and triangles.
+Result<void> uploadScene(runtime::Renderer& renderer, const RenderScene& scene);
+
+// What a default camera frames: the scene's bounds, or the volumes' when it has no triangles.
+grid::Aabb framedBox(const baker::Scene& scene, const std::vector<Volume>& volumes);
+
+// The scene's punctual lights the renderer adds as direct light: the first
+// runtime::kMaxRenderLights of them; `dropped` counts the rest.
+struct LightSelection {
+    std::vector<PunctualLight> lights;
+    size_t dropped = 0;
+};
+
+LightSelection directLights(const baker::Scene& scene);
+
+// The environment `spec` names, as `probekit bake --env` reads it: "none" (black), "R,G,B"
+// constant radiance in W/sr/m^2, or a lat-long image file. Errors name `source`.
+Result<Environment> environmentFromSpec(const std::string& spec, const std::string& source);
+
+// The environment the volumes were baked with, as the .pvol's recorded bake settings hold it:
+// black when they record none. A record that does not parse is an error naming `source`; a
+// recorded file that no longer loads gives black, and `warning` says why.
+Result<Environment> recordedEnvironment(const BakeMetadata& metadata, const std::string& source,
+                                        std::string& warning);
+
+// One 2^3 volume of zeros over the scene's bounds: the volume set a renderer needs when the
+// scene is shown without a .pvol (the dynamic GI alone, FrameSettings::bakedLight false).
+Result<Volume> placeholderVolume(const baker::Scene& scene);
+
+} // namespace probekit::viewer

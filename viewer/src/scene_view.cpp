@@ -1,0 +1,166 @@
+// A glTF scene and its volumes on the runtime renderer (viewer/include/probekit/viewer/
+// scene_view.hpp).
+#include "probekit/viewer/scene_view.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <iterator>
+
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
+#include <nlohmann/json.hpp>
+
+#include "probekit/baker/config.hpp"
+
+namespace probekit::viewer {
+namespace {
+
+// The triangle's three vertex normals: the glTF ones, or its face normal where any is missing.
+void vertexNormals(const baker::Scene& scene, glm::uvec3 tri, glm::vec3 face, glm::vec3 (&n)[3]) {
+    n[0] = n[1] = n[2] = face;
+    if (scene.normals.size() != scene.positions.size()) {
+        return;
+    }
+    const glm::vec3 given[3] = {scene.normals[tri.x], scene.normals[tri.y], scene.normals[tri.z]};
+    if (given[0] != glm::vec3(0.0f) && given[1] != glm::vec3(0.0f) && given[2] != glm::vec3(0.0f)) {
+        std::copy(std::begin(given), std::end(given), std::begin(n));
+    }
+}
+
+// The texture slot of the triangle's material: its base-colour image, given a slot on first
+// use while the renderer has slots left; -1 for none.
+int32_t textureSlot(const baker::Scene& scene, const baker::Material& material,
+                    std::vector<int32_t>& texture_of_image, RenderScene& out) {
+    if (material.baseColorTexture < 0) {
+        return -1;
+    }
+    int32_t& slot = texture_of_image[size_t(material.baseColorTexture)];
+    if (slot < 0 && out.textures.size() < runtime::kMaxRenderTextures) {
+        slot = int32_t(out.textures.size());
+        out.textures.push_back(scene.images[size_t(material.baseColorTexture)]);
+    } else if (slot < 0 && out.warnings.empty()) {
+        out.warnings.push_back("more than " + std::to_string(runtime::kMaxRenderTextures) +
+                               " base-colour textures; the rest are sampled per vertex");
+    }
+    return slot;
+}
+
+// A bake config's "environment" object, parsed as `probekit bake` parses it.
+Result<baker::EnvironmentConfig> parseEnvironment(const nlohmann::json& env,
+                                                  const std::string& source) {
+    Result<baker::BakeConfig> config =
+        baker::parseBakeConfig(nlohmann::json{{"environment", env}}.dump(), source);
+    if (!config) {
+        return config.error();
+    }
+    return config.value().environment;
+}
+
+} // namespace
+
+RenderScene flattenScene(const baker::Scene& scene) {
+    RenderScene out;
+    std::vector<int32_t> texture_of_image(scene.images.size(), -1);
+    const glm::vec2 corner_bary[3] = {{0.0f, 0.0f}, {1.0f, 0.0f}, {0.0f, 1.0f}};
+    for (uint32_t t = 0; t < scene.triangles.size(); ++t) {
+        const glm::uvec3 tri = scene.triangles[t];
+        const glm::vec3 p[3] = {scene.positions[tri.x], scene.positions[tri.y],
+                                scene.positions[tri.z]};
+        const glm::vec3 cross = glm::cross(p[1] - p[0], p[2] - p[0]);
+        const float length = glm::length(cross);
+        if (!(length > 0.0f) || !std::isfinite(length)) {
+            continue;
+        }
+        glm::vec3 n[3];
+        vertexNormals(scene, tri, cross / length, n);
+        const baker::Material& material = scene.materials[scene.triangleMaterial[t]];
+        const int32_t texture = textureSlot(scene, material, texture_of_image, out);
+        out.triangleTextures.push_back(texture);
+        for (int k = 0; k < 3; ++k) {
+            out.indices.push_back(uint32_t(out.vertices.size()));
+            const glm::vec3 albedo =
+                texture >= 0 ? material.baseColor : scene.albedoAt(t, corner_bary[k]);
+            out.vertices.push_back(
+                {p[k], n[k], albedo, scene.emissionAt(t, corner_bary[k]), scene.uvs[tri[k]]});
+        }
+    }
+    return out;
+}
+
+Result<void> uploadScene(runtime::Renderer& renderer, const RenderScene& scene) {
+    if (auto r = renderer.setTextures(scene.textures); !r) {
+        return r;
+    }
+    return renderer.setMeshes(scene.vertices, scene.indices, scene.triangleTextures);
+}
+
+grid::Aabb framedBox(const baker::Scene& scene, const std::vector<Volume>& volumes) {
+    if (scene.hasGeometry()) {
+        return scene.bounds;
+    }
+    grid::Aabb box{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+    for (const Volume& v : volumes) {
+        const grid::Aabb b = v.desc.grid.worldBounds();
+        box.min = glm::min(box.min, b.min);
+        box.max = glm::max(box.max, b.max);
+    }
+    return box;
+}
+
+LightSelection directLights(const baker::Scene& scene) {
+    LightSelection out;
+    const size_t kept = std::min(scene.lights.size(), runtime::kMaxRenderLights);
+    out.lights.assign(scene.lights.begin(), scene.lights.begin() + std::ptrdiff_t(kept));
+    out.dropped = scene.lights.size() - kept;
+    return out;
+}
+
+Result<Environment> environmentFromSpec(const std::string& spec, const std::string& source) {
+    nlohmann::json env;
+    float rgb[3];
+    char tail;
+    if (spec == "none") {
+        env = {{"type", "black"}};
+    } else if (std::sscanf(spec.c_str(), "%f,%f,%f%c", &rgb[0], &rgb[1], &rgb[2], &tail) == 3) {
+        env = {{"type", "constant"}, {"radiance", {rgb[0], rgb[1], rgb[2]}}};
+    } else {
+        env = {{"type", "latlong"}, {"file", spec}};
+    }
+    Result<baker::EnvironmentConfig> config = parseEnvironment(env, source);
+    if (!config) {
+        return config.error();
+    }
+    return baker::makeEnvironment(config.value());
+}
+
+Result<Environment> recordedEnvironment(const BakeMetadata& metadata, const std::string& source,
+                                        std::string& warning) {
+    const nlohmann::json recorded = nlohmann::json::parse(metadata.parametersJson, nullptr, false);
+    if (!recorded.is_object() || !recorded.contains("environment")) {
+        return Environment{};
+    }
+    Result<baker::EnvironmentConfig> config = parseEnvironment(recorded["environment"], source);
+    if (!config) {
+        return config.error();
+    }
+    Result<Environment> loaded = baker::makeEnvironment(config.value());
+    if (!loaded) {
+        warning = loaded.error().message + "; the background stays black";
+        return Environment{};
+    }
+    return loaded;
+}
+
+Result<Volume> placeholderVolume(const baker::Scene& scene) {
+    VolumeDesc desc;
+    desc.name = "no-volume";
+    grid::Aabb box = scene.bounds;
+    box.max = glm::max(box.max, box.min + glm::vec3(1e-3f));
+    desc.grid = grid::GridLayout(box, glm::uvec3(2), grid::PositionMode::Corner);
+    desc.shOrder = sh::Order::L1;
+    const std::vector<sh::ShRgb> zeros(8);
+    return makeVolume(desc, zeros);
+}
+
+} // namespace probekit::viewer
