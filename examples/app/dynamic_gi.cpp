@@ -18,6 +18,8 @@
 #include <probekit/runtime/gpu_volumes.hpp>
 #include <probekit/runtime/renderer.hpp>
 
+#include "example_start.hpp"
+
 using namespace probekit;
 
 namespace {
@@ -36,19 +38,9 @@ void quad(std::vector<runtime::RenderVertex>& v, std::vector<uint32_t>& idx, glm
 } // namespace
 
 int main(int argc, char** argv) {
-    if (argc != 3) {
-        std::fprintf(stderr, "usage: %s VOLUMES.pvol OUT.pfm\n", argv[0]);
-        return 1;
-    }
-    Result<PvolFile> file = readPvol(argv[1]);
-    if (!file || file.value().volumes.empty()) {
-        std::fprintf(stderr, "%s\n", file ? "no volumes" : file.error().message.c_str());
-        return 1;
-    }
-    Result<std::vector<runtime::DeviceInfo>> devices = runtime::enumerateDevices();
-    if (!devices || devices.value().empty()) {
-        std::printf("no Vulkan device: nothing to render\n");
-        return 77;
+    PvolFile file;
+    if (const int code = startExample(argc, argv, file); code != 0) {
+        return code;
     }
     Result<std::unique_ptr<runtime::GpuContext>> context = runtime::GpuContext::create();
     if (!context) {
@@ -56,8 +48,7 @@ int main(int argc, char** argv) {
         return 1;
     }
     runtime::GpuContext& gpu = *context.value();
-    Result<runtime::GpuVolumeSet> volumes =
-        runtime::GpuVolumeSet::create(gpu, file.value().volumes);
+    Result<runtime::GpuVolumeSet> volumes = runtime::GpuVolumeSet::create(gpu, file.volumes);
     Result<runtime::Renderer> renderer = runtime::Renderer::create(gpu);
     if (!volumes || !renderer) {
         std::fprintf(stderr, "%s\n",
@@ -66,7 +57,7 @@ int main(int argc, char** argv) {
     }
 
     // The scene: a floor over the first volume's box and two walls along two of its sides.
-    const grid::Aabb box = file.value().volumes[0].desc.grid.worldBounds();
+    const grid::Aabb box = file.volumes[0].desc.grid.worldBounds();
     const glm::vec3 lo = box.min;
     const glm::vec3 hi = box.max;
     std::vector<runtime::RenderVertex> vertices;

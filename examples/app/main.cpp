@@ -17,25 +17,17 @@
 #include <probekit/runtime/renderer.hpp>
 #include <probekit/runtime/sampler.hpp>
 
+#include "example_start.hpp"
+
 using namespace probekit;
 
 int main(int argc, char** argv) {
-    if (argc != 3) {
-        std::fprintf(stderr, "usage: %s VOLUMES.pvol OUT.pfm\n", argv[0]);
-        return 1;
+    PvolFile file;
+    if (const int code = startExample(argc, argv, file); code != 0) {
+        return code;
     }
-    Result<PvolFile> file = readPvol(argv[1]);
-    if (!file || file.value().volumes.empty()) {
-        std::fprintf(stderr, "%s\n", file ? "no volumes" : file.error().message.c_str());
-        return 1;
-    }
-    const std::vector<Volume>& volumes = file.value().volumes;
+    const std::vector<Volume>& volumes = file.volumes;
 
-    Result<std::vector<runtime::DeviceInfo>> devices = runtime::enumerateDevices();
-    if (!devices || devices.value().empty()) {
-        std::printf("no Vulkan device: nothing to render\n");
-        return 77;
-    }
     Result<std::unique_ptr<runtime::GpuContext>> context = runtime::GpuContext::create();
     if (!context) {
         std::fprintf(stderr, "%s\n", context.error().message.c_str());

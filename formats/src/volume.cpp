@@ -8,6 +8,7 @@
 #include <string>
 
 #include <Imath/half.h>
+#include <glm/common.hpp>
 
 #include "texel_check.hpp"
 
@@ -393,6 +394,16 @@ Result<void> detail::validateVolumeStructure(const Volume& volume) {
                              " planes x " + std::to_string(probe_count) + " probes x 4)");
     }
     return {};
+}
+
+grid::Aabb worldBounds(std::span<const Volume> volumes) {
+    grid::Aabb out{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
+    for (const Volume& v : volumes) {
+        const grid::Aabb b = v.desc.grid.worldBounds();
+        out.min = glm::min(out.min, b.min);
+        out.max = glm::max(out.max, b.max);
+    }
+    return out;
 }
 
 } // namespace probekit

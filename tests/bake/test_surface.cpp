@@ -16,24 +16,14 @@
 #include "probekit/runtime/renderer.hpp"
 #include "probekit/runtime/sampler.hpp"
 #include "probekit/runtime/surface_error.hpp"
+#include "probekit/viewer/surface_view.hpp"
 
 namespace probekit {
 namespace {
 
 using baker::Scene;
 
-// Rays through the pixel centres of a view, as probekit surface-reference traces them.
-std::vector<baker::SurfaceRay> viewRays(const runtime::Camera& camera, uint32_t w, uint32_t h) {
-    std::vector<baker::SurfaceRay> rays;
-    for (uint32_t y = 0; y < h; ++y) {
-        for (uint32_t x = 0; x < w; ++x) {
-            rays.push_back(
-                {camera.eye, runtime::pixelDirection(camera, w, h, glm::vec2(x + 0.5f, y + 0.5f))});
-        }
-    }
-    return rays;
-}
-
+// The view's surface reference, traced as probekit surface-reference traces it.
 runtime::SurfaceReferenceImage referenceImage(const Scene& scene, const runtime::Camera& camera,
                                               uint32_t w, uint32_t h, uint32_t samples,
                                               uint64_t seed = 1, uint32_t threads = 0) {
@@ -41,23 +31,13 @@ runtime::SurfaceReferenceImage referenceImage(const Scene& scene, const runtime:
     settings.samples = samples;
     settings.seed = seed;
     settings.threads = threads;
-    const std::vector<baker::SurfaceRay> rays = viewRays(camera, w, h);
+    const std::vector<baker::SurfaceRay> rays = viewer::viewRays(camera, w, h);
     Result<baker::SurfaceReference> traced = baker::traceSurfaceReference(scene, rays, settings);
     EXPECT_TRUE(traced.ok()) << (traced.ok() ? "" : traced.error().message);
-    runtime::SurfaceReferenceImage image;
-    image.width = w;
-    image.height = h;
     if (!traced.ok()) {
-        return image;
+        return runtime::SurfaceReferenceImage{w, h};
     }
-    for (const baker::SurfaceSample& s : traced.value().samples) {
-        image.hit.push_back(s.hit ? 1 : 0);
-        image.position.push_back(s.position);
-        image.normal.push_back(s.normal);
-        image.irradiance.push_back(s.irradiance);
-        image.standardError.push_back(s.standardError);
-    }
-    return image;
+    return viewer::referenceImage(traced.value(), w, h);
 }
 
 // E of a baked file at the reference's points (the CPU sampler, as probekit sample).

@@ -8,6 +8,7 @@
 #include "bake_test_support.hpp"
 #include "probekit/viewer/scene_gi.hpp"
 #include "probekit/viewer/scene_view.hpp"
+#include "probekit/viewer/surface_view.hpp"
 
 namespace probekit {
 namespace {
@@ -279,6 +280,36 @@ TEST(ViewerGi, FittedCascadesHoldTheSceneCentredOnIt) {
     EXPECT_FLOAT_EQ(fitted.cellSize * 2.0f * 30.0f, 12.0f);
     EXPECT_EQ(fitted.aheadFraction, 0.0f);
     EXPECT_EQ(fitted.iterations, 7u);
+}
+
+// Pixel rays row by row from the top, through the pixel centres: a 3 x 3 view's centre ray
+// looks at the target, its first ray up and to the left.
+TEST(ViewerSurface, ViewRaysAndTheReferenceImageKeepPixelOrder) {
+    runtime::Camera camera;
+    camera.eye = glm::vec3(1.0f, 2.0f, 3.0f);
+    camera.target = glm::vec3(1.0f, 2.0f, 0.0f);
+    const std::vector<baker::SurfaceRay> rays = viewer::viewRays(camera, 3, 3);
+    ASSERT_EQ(rays.size(), 9u);
+    EXPECT_LT(glm::length(rays[4].direction - glm::vec3(0, 0, -1)), 1e-6f);
+    EXPECT_EQ(rays[0].origin, camera.eye);
+    EXPECT_GT(rays[0].direction.y, 0.0f);
+    EXPECT_LT(rays[0].direction.x, 0.0f);
+    EXPECT_LT(rays[8].direction.y, 0.0f);
+    EXPECT_GT(rays[8].direction.x, 0.0f);
+
+    baker::SurfaceReference traced;
+    traced.samples.resize(2);
+    traced.samples[1].hit = true;
+    traced.samples[1].irradiance = glm::vec3(4.0f, 5.0f, 6.0f);
+    traced.samples[1].standardError = glm::vec3(0.5f);
+    const runtime::SurfaceReferenceImage image = viewer::referenceImage(traced, 2, 1);
+    EXPECT_EQ(image.width, 2u);
+    EXPECT_EQ(image.height, 1u);
+    ASSERT_EQ(image.hit.size(), 2u);
+    EXPECT_EQ(image.hit[0], 0);
+    EXPECT_EQ(image.hit[1], 1);
+    EXPECT_EQ(image.irradiance[1], glm::vec3(4.0f, 5.0f, 6.0f));
+    EXPECT_EQ(image.standardError[1], glm::vec3(0.5f));
 }
 
 } // namespace

@@ -303,3 +303,24 @@ TEST(VolumeMake, RejectsACoefficientBeyondTheTexelBound) {
     probes[7].rgb[2].y = -1e30f;
     EXPECT_TRUE(makeVolume(d, probes).ok());
 }
+
+TEST(VolumeBounds, WorldBoundsHoldEveryVolumeAndAreEmptyWithoutOne) {
+    std::vector<Volume> volumes;
+    for (const grid::Aabb box :
+         {grid::Aabb{glm::vec3(0.0f), glm::vec3(1.0f, 2.0f, 3.0f)},
+          grid::Aabb{glm::vec3(-4.0f, 1.0f, 1.0f), glm::vec3(-3.0f, 5.0f, 2.0f)}}) {
+        VolumeDesc d;
+        d.grid = grid::GridLayout(box, glm::uvec3(2), grid::PositionMode::Corner);
+        d.shOrder = sh::Order::L1;
+        const std::vector<sh::ShRgb> probes(8);
+        Result<Volume> v = makeVolume(d, probes);
+        ASSERT_TRUE(v.ok()) << v.error().message;
+        volumes.push_back(std::move(v.value()));
+    }
+    const grid::Aabb both = worldBounds(volumes);
+    EXPECT_EQ(both.min, glm::vec3(-4.0f, 0.0f, 0.0f));
+    EXPECT_EQ(both.max, glm::vec3(1.0f, 5.0f, 3.0f));
+    const grid::Aabb none = worldBounds({});
+    EXPECT_EQ(none.min, glm::vec3(INFINITY));
+    EXPECT_EQ(none.max, glm::vec3(-INFINITY));
+}

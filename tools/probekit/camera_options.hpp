@@ -8,11 +8,9 @@
 
 #include <CLI/CLI.hpp>
 
-#include "probekit/baker/surface_reference.hpp"
 #include "probekit/formats/grid.hpp"
 #include "probekit/formats/result.hpp"
 #include "probekit/runtime/renderer.hpp"
-#include "probekit/runtime/surface_error.hpp"
 
 namespace probekit::cli {
 
@@ -30,13 +28,5 @@ void addCameraOptions(CLI::App* cmd, CameraOptions& o);
 // (+z: glTF assets face +Z).
 Result<runtime::Camera> chooseCamera(const CameraOptions& o, const grid::Aabb& framed,
                                      float aspect);
-
-// One ray per pixel centre of a w x h view (runtime::pixelDirection), row 0 at the top: the rays
-// surface-reference and bench trace, so their pixels are render's.
-std::vector<baker::SurfaceRay> viewRays(const runtime::Camera& camera, uint32_t w, uint32_t h);
-
-// A traced surface reference as the image runtime::compareSurface takes.
-runtime::SurfaceReferenceImage referenceImage(const baker::SurfaceReference& traced, uint32_t w,
-                                              uint32_t h);
 
 } // namespace probekit::cli

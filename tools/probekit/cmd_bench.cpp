@@ -24,6 +24,7 @@
 #include "probekit/runtime/compare.hpp"
 #include "probekit/runtime/sampler.hpp"
 #include "probekit/runtime/surface_error.hpp"
+#include "probekit/viewer/surface_view.hpp"
 #include "terminal_text.hpp"
 
 namespace probekit::cli {
@@ -72,7 +73,7 @@ Result<runtime::SurfaceReferenceImage> surfaceReference(const BenchOptions& o,
     if (!camera) {
         return camera.error();
     }
-    const std::vector<baker::SurfaceRay> rays = viewRays(camera.value(), w, h);
+    const std::vector<baker::SurfaceRay> rays = viewer::viewRays(camera.value(), w, h);
     baker::SurfaceReferenceSettings settings;
     settings.samples =
         o.surfaceSamples.value_or(o.quick ? kSurfaceSamplesQuick : kSurfaceSamplesFull);
@@ -82,7 +83,7 @@ Result<runtime::SurfaceReferenceImage> surfaceReference(const BenchOptions& o,
     if (!traced) {
         return traced.error();
     }
-    const runtime::SurfaceReferenceImage image = referenceImage(traced.value(), w, h);
+    const runtime::SurfaceReferenceImage image = viewer::referenceImage(traced.value(), w, h);
     return image;
 }
 

@@ -36,6 +36,7 @@
 #include "probekit/runtime/sampler.hpp"
 #include "probekit/runtime/surface_error.hpp"
 #include "probekit/runtime/tonemap.hpp"
+#include "probekit/viewer/surface_view.hpp"
 #include "terminal_text.hpp"
 
 namespace probekit::cli {
@@ -263,7 +264,7 @@ int runReference(const ReferenceOptions& o) {
         printError("surface-reference", camera.error().message);
         return kExitFailure;
     }
-    const std::vector<baker::SurfaceRay> rays = viewRays(camera.value(), width, height);
+    const std::vector<baker::SurfaceRay> rays = viewer::viewRays(camera.value(), width, height);
     baker::SurfaceReferenceSettings settings;
     settings.samples = o.samples;
     settings.maxBounces = o.maxBounces;
@@ -284,7 +285,8 @@ int runReference(const ReferenceOptions& o) {
         printError("surface-reference", traced.error().message);
         return kExitFailure;
     }
-    const runtime::SurfaceReferenceImage image = referenceImage(traced.value(), width, height);
+    const runtime::SurfaceReferenceImage image =
+        viewer::referenceImage(traced.value(), width, height);
     if (Result<void> written = writeReference(o.output, image); !written) {
         printError("surface-reference", written.error().message);
         return kExitFailure;

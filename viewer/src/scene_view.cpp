@@ -96,16 +96,7 @@ Result<void> uploadScene(runtime::Renderer& renderer, const RenderScene& scene) 
 }
 
 grid::Aabb framedBox(const baker::Scene& scene, const std::vector<Volume>& volumes) {
-    if (scene.hasGeometry()) {
-        return scene.bounds;
-    }
-    grid::Aabb box{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
-    for (const Volume& v : volumes) {
-        const grid::Aabb b = v.desc.grid.worldBounds();
-        box.min = glm::min(box.min, b.min);
-        box.max = glm::max(box.max, b.max);
-    }
-    return box;
+    return scene.hasGeometry() ? scene.bounds : worldBounds(volumes);
 }
 
 LightSelection directLights(const baker::Scene& scene) {

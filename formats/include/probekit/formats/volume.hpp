@@ -160,4 +160,8 @@ Result<Volume> makeVolume(VolumeDesc desc, std::span<const sh::ShRgb> probes,
 //    bound 1e+30"
 Result<void> validateVolume(const Volume& volume);
 
+// The smallest box holding every volume's world bounds (GridLayout::worldBounds); with no volume
+// an empty box, min +inf and max -inf.
+grid::Aabb worldBounds(std::span<const Volume> volumes);
+
 } // namespace probekit
