@@ -40,29 +40,21 @@
 namespace probekit::baker {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using test::kFloatSlack;
+using test::kPi;
+using test::kSigmas;
 
 // See the file comment.
-constexpr double kSigmas = 5.0;
 constexpr int kSeeds = 16;
-constexpr double kFloatSlack = 2e-5; // relative to the largest reference coefficient
 
 // ---------------------------------------------------------------------------------------------
 // Scenes, built face by face.
 
 class SceneBuilder {
 public:
-    SceneBuilder() {
-        m_scene.materials.push_back(Material{});
-        m_scene.environment.type = Environment::Type::Constant;
-        m_scene.environment.constant = glm::vec3(0.0f);
-    }
+    SceneBuilder() : m_scene(test::emptyScene()) {}
     uint32_t material(glm::vec3 albedo, glm::vec3 emission = glm::vec3(0.0f)) {
-        Material m;
-        m.baseColor = albedo;
-        m.emission = emission;
-        m_scene.materials.push_back(m);
-        return uint32_t(m_scene.materials.size() - 1);
+        return test::addMaterial(m_scene, albedo, emission);
     }
     // A planar quad corner, corner + u, corner + u + v, corner + v, wound so that its normal
     // points along `facing`.
@@ -759,25 +751,14 @@ TEST_F(VplRoom, LightcutErrorStaysWithinItsBound) {
 // Bakes: determinism, config.
 
 TEST(VplBake, BitIdenticalForOneAndTwoThreadsAndRecordsResolvedSettings) {
-    const auto dir = std::filesystem::temp_directory_path() / "probekit_test_vpl";
-    std::filesystem::create_directories(dir);
-    ASSERT_TRUE(writeGeneratedScene("cornell", dir / "cornell.gltf").ok());
-    Result<Scene> scene = loadGltf(dir / "cornell.gltf");
-    ASSERT_TRUE(scene.ok());
+    const Scene scene = test::generatedScene("cornell");
     BakeConfig c;
+    c.volumes = test::wholeSceneVolume(glm::uvec3(4, 4, 2));
     c.method = Method::Vpl;
     c.vpl.count = 4096;
-    VolumeConfig v;
-    v.resolution = glm::uvec3(4, 4, 2);
-    c.volumes = {v};
-    BakeOptions one, two;
-    one.threads = 1;
-    two.threads = 2;
-    Result<BakeResult> a = bake(scene.value(), c, one);
-    Result<BakeResult> b = bake(scene.value(), c, two);
+    auto [a, b] = test::bakeOnOneAndTwoThreads(scene, c);
     ASSERT_TRUE(a.ok() && b.ok());
-    a.value().file.metadata.bakeSeconds = b.value().file.metadata.bakeSeconds = 0;
-    EXPECT_EQ(encodePvol(a.value().file), encodePvol(b.value().file));
+    test::expectSameFileButTiming(a.value(), b.value());
     EXPECT_GT(a.value().stats.vpls, 0u);
     EXPECT_GT(a.value().stats.vplMeanCut, 0.0);
 
@@ -788,10 +769,7 @@ TEST(VplBake, BitIdenticalForOneAndTwoThreadsAndRecordsResolvedSettings) {
     EXPECT_EQ(json.find("\"clamp_distance\":\"auto\""), std::string::npos) << json;
     EXPECT_EQ(json.find("\"near_field\":\"auto\""), std::string::npos) << json;
 
-    c.seed = 7;
-    Result<BakeResult> other = bake(scene.value(), c, one);
-    ASSERT_TRUE(other.ok());
-    EXPECT_NE(other.value().file.volumes[0].texelsF16, a.value().file.volumes[0].texelsF16);
+    test::expectOtherSeedChangesTexels(scene, c, a.value());
 }
 
 // The automatic count: 4 x area / spacing^2 as a power of two in 16384..65536.
