@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <array>
 #include <filesystem>
 #include <numbers>
 #include <span>
@@ -25,6 +26,14 @@ constexpr double kPi = std::numbers::pi;
 // largest reference coefficient) for float accumulation.
 constexpr double kSigmas = 5.0;
 constexpr double kFloatSlack = 2e-5;
+
+// Gauss-Legendre, 8 points on [-1, 1]: exact for polynomials of degree 15.
+constexpr std::array<double, 8> kGaussNodes = {
+    -0.9602898564975363, -0.7966664774136267, -0.5255324099163290, -0.1834346424956498,
+    0.1834346424956498,  0.5255324099163290,  0.7966664774136267,  0.9602898564975363};
+constexpr std::array<double, 8> kGaussWeights = {
+    0.1012285362903763, 0.2223810344533745, 0.3137066458778873, 0.3626837833783620,
+    0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763};
 
 // A fresh, empty folder under the system temporary directory.
 // The process id keeps test processes that ctest -j runs at once out of each other's folders.
@@ -65,6 +74,15 @@ inline std::vector<baker::VolumeConfig> wholeSceneVolume(glm::uvec3 resolution) 
 inline baker::BakeConfig sceneVolume(uint32_t samples, glm::uvec3 resolution) {
     baker::BakeConfig c;
     c.path.samples = samples;
+    c.volumes = wholeSceneVolume(resolution);
+    return c;
+}
+
+// A bake by `method` of one volume of `resolution` probes over the whole scene, every other
+// setting at its default.
+inline baker::BakeConfig methodVolume(baker::Method method, glm::uvec3 resolution) {
+    baker::BakeConfig c;
+    c.method = method;
     c.volumes = wholeSceneVolume(resolution);
     return c;
 }

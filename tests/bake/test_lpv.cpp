@@ -203,9 +203,7 @@ TEST(LpvCascades, IrradianceIsContinuousAcrossCascadeBorders) {
 // across threads); another seed changes the VPLs and so the result.
 TEST(LpvDeterminism, BitIdenticalForOneAndTwoThreads) {
     const Scene scene = test::generatedScene("cornell");
-    BakeConfig c;
-    c.volumes = test::wholeSceneVolume(glm::uvec3(4, 4, 2));
-    c.method = Method::Lpv;
+    BakeConfig c = test::methodVolume(Method::Lpv, glm::uvec3(4, 4, 2));
     c.lpv.cascades = 2;
     c.lpv.directSamples = 16;
     auto [a, b] = test::bakeOnOneAndTwoThreads(scene, c);

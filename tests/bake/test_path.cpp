@@ -48,7 +48,7 @@
 namespace probekit::baker {
 namespace {
 
-using namespace test; // kPi, kSigmas, kFloatSlack, emptyScene, addMaterial
+using namespace test; // kPi, kSigmas, kFloatSlack, kGauss*, emptyScene, addMaterial
 
 // See the file comment for why this number.
 constexpr int kProbes = 16;
@@ -234,14 +234,6 @@ std::array<double, sh::kMaxCoefficients> basis(glm::dvec3 d) {
     }
     return out;
 }
-
-// Gauss-Legendre, 8 points on [-1, 1]: exact for polynomials of degree 15.
-constexpr std::array<double, 8> kGaussNodes = {
-    -0.9602898564975363, -0.7966664774136267, -0.5255324099163290, -0.1834346424956498,
-    0.1834346424956498,  0.5255324099163290,  0.7966664774136267,  0.9602898564975363};
-constexpr std::array<double, 8> kGaussWeights = {
-    0.1012285362903763, 0.2223810344533745, 0.3137066458778873, 0.3626837833783620,
-    0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763};
 
 // Integral of f over [a, b], split into `pieces` equal parts with 8 Gauss points each.
 double integrate1d(const std::function<double(double)>& f, double a, double b, int pieces) {
@@ -457,6 +449,13 @@ void expectCoefficientsMatch(const std::string& what, const ShEstimate& e,
 void expectShMatches(const std::string& what, const ShEstimate& e, const ShDouble& reference,
                      sh::Order order) {
     expectCoefficientsMatch(what, e, reference, sh::coefficientCount(order));
+}
+
+// The estimate of a probe at the origin from 4096 directions.
+ShEstimate estimateAtOrigin(const Scene& scene, const RayTracer& tracer, sh::Order order) {
+    PathConfig settings;
+    settings.samples = 4096;
+    return estimate(bakeProbes(scene, tracer, settings, order, glm::vec3(0.0f)));
 }
 
 // A probe at `probe` baked with 4096 directions and up to 4 bounces matches `reference` (L2).
@@ -845,10 +844,7 @@ TEST(PathTracerEnvironment, LatLongSkyMatchesNumericalIntegration) {
     scene.environment = syntheticSky(false);
     const auto tracer = buildTracer(scene);
     ASSERT_TRUE(tracer);
-    PathConfig settings;
-    settings.samples = 4096;
-    const ShEstimate e =
-        estimate(bakeProbes(scene, *tracer, settings, sh::Order::L2, glm::vec3(0.0f)));
+    const ShEstimate e = estimateAtOrigin(scene, *tracer, sh::Order::L2);
     const ShDouble reference = environmentSh(scene.environment);
     expectShMatches("quadrature", e, reference, sh::Order::L2);
 
@@ -1015,10 +1011,7 @@ TEST(PathTracerEnvironment, UffiziL00MatchesPixelSum) {
     scene.environment = std::move(env).value();
     const auto tracer = buildTracer(scene);
     ASSERT_TRUE(tracer);
-    PathConfig settings;
-    settings.samples = 4096;
-    const ShEstimate e =
-        estimate(bakeProbes(scene, *tracer, settings, sh::Order::L1, glm::vec3(0.0f)));
+    const ShEstimate e = estimateAtOrigin(scene, *tracer, sh::Order::L1);
 
     const Image& image = scene.environment.image;
     glm::dvec3 pixel_sum = pixelSum(image);

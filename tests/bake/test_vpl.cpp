@@ -41,6 +41,8 @@ namespace probekit::baker {
 namespace {
 
 using test::kFloatSlack;
+using test::kGaussNodes;
+using test::kGaussWeights;
 using test::kPi;
 using test::kSigmas;
 
@@ -126,14 +128,6 @@ void writeFailure(const std::string& name, const std::string& text) {
 // ---------------------------------------------------------------------------------------------
 // Quadrature.
 
-// Gauss-Legendre, 8 points on [-1, 1].
-constexpr std::array<double, 8> kNodes = {
-    -0.9602898564975363, -0.7966664774136267, -0.5255324099163290, -0.1834346424956498,
-    0.1834346424956498,  0.5255324099163290,  0.7966664774136267,  0.9602898564975363};
-constexpr std::array<double, 8> kWeights = {
-    0.1012285362903763, 0.2223810344533745, 0.3137066458778873, 0.3626837833783620,
-    0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763};
-
 // Integral of f(x, z) over the square [-half, half]^2, cells x cells pieces of 8 x 8 points.
 double integrateSquare(double half, int cells, const std::function<double(double, double)>& f) {
     const double h = 2.0 * half / cells;
@@ -142,9 +136,9 @@ double integrateSquare(double half, int cells, const std::function<double(double
         for (int j = 0; j < cells; ++j) {
             for (int a = 0; a < 8; ++a) {
                 for (int b = 0; b < 8; ++b) {
-                    const double x = -half + (i + 0.5 + 0.5 * kNodes[a]) * h;
-                    const double z = -half + (j + 0.5 + 0.5 * kNodes[b]) * h;
-                    sum += kWeights[a] * kWeights[b] * 0.25 * h * h * f(x, z);
+                    const double x = -half + (i + 0.5 + 0.5 * kGaussNodes[a]) * h;
+                    const double z = -half + (j + 0.5 + 0.5 * kGaussNodes[b]) * h;
+                    sum += kGaussWeights[a] * kGaussWeights[b] * 0.25 * h * h * f(x, z);
                 }
             }
         }
@@ -752,9 +746,7 @@ TEST_F(VplRoom, LightcutErrorStaysWithinItsBound) {
 
 TEST(VplBake, BitIdenticalForOneAndTwoThreadsAndRecordsResolvedSettings) {
     const Scene scene = test::generatedScene("cornell");
-    BakeConfig c;
-    c.volumes = test::wholeSceneVolume(glm::uvec3(4, 4, 2));
-    c.method = Method::Vpl;
+    BakeConfig c = test::methodVolume(Method::Vpl, glm::uvec3(4, 4, 2));
     c.vpl.count = 4096;
     auto [a, b] = test::bakeOnOneAndTwoThreads(scene, c);
     ASSERT_TRUE(a.ok() && b.ok());
