@@ -49,14 +49,15 @@ struct VersusPath {
     double ratio = 0.0; // seconds / pathSeconds
 };
 // `rounds` rounds of bakeCornell(config) then bakeCornell(path_config) (alternating, so both see
-// the same load on average), `each` called after every round with its index and its two results.
+// the same load on average), each printed as "[<method> cornell] 16^3 round ..." with the
+// method's seconds to `digits` decimals, and `each` (when set) called with the method's result.
 // Records the counters `<method>_s` and path4096_s (means per round) and time_ratio on `state`,
 // and the ratio as results()[ratio_key]. When a bake fails: skips `state` with the first error
 // (the method's before the path's) and returns nothing.
 std::optional<VersusPath>
-timeAgainstPath(benchmark::State& state, const std::string& method, const std::string& ratio_key,
-                const baker::BakeConfig& config, const baker::BakeConfig& path_config, int rounds,
-                const std::function<void(int round, const baker::BakeResult& result,
-                                         const baker::BakeResult& path)>& each);
+timeAgainstPath(benchmark::State& state, const std::string& method, int digits,
+                const std::string& ratio_key, const baker::BakeConfig& config,
+                const baker::BakeConfig& path_config, int rounds,
+                const std::function<void(const baker::BakeResult& result)>& each = {});
 
 } // namespace probekit::bench

@@ -96,12 +96,7 @@ void BM_LpvVsPath16Cubed(benchmark::State& state) {
         BakeConfig path_config = volume16(Method::Path);
         path_config.path.samples = 4096;
         const std::optional<bench::VersusPath> timed = bench::timeAgainstPath(
-            state, "lpv", "lpv16_ratio", lpv_config, path_config, kRounds,
-            [](int round, const BakeResult& lpv, const BakeResult& path) {
-                std::printf("[lpv cornell] 16^3 round %d: lpv %.3f s, path at 4096 samples %.2f "
-                            "s\n",
-                            round + 1, lpv.stats.seconds, path.stats.seconds);
-            });
+            state, "lpv", 3, "lpv16_ratio", lpv_config, path_config, kRounds);
         if (!timed) {
             return;
         }

@@ -167,15 +167,12 @@ void BM_VplVsPath16Cubed(benchmark::State& state) {
         path_config.path.samples = 4096;
         double cut = 0.0;
         uint64_t vpls = 0;
-        const std::optional<bench::VersusPath> timed = bench::timeAgainstPath(
-            state, "vpl", "vpl16_ratio", vpl_config, path_config, kRounds,
-            [&](int round, const BakeResult& vpl, const BakeResult& path) {
-                vpls = vpl.stats.vpls;
-                cut = vpl.stats.vplMeanCut;
-                std::printf("[vpl cornell] 16^3 round %d: vpl %.2f s, path at 4096 samples %.2f "
-                            "s\n",
-                            round + 1, vpl.stats.seconds, path.stats.seconds);
-            });
+        const std::optional<bench::VersusPath> timed =
+            bench::timeAgainstPath(state, "vpl", 2, "vpl16_ratio", vpl_config, path_config, kRounds,
+                                   [&](const BakeResult& vpl) {
+                                       vpls = vpl.stats.vpls;
+                                       cut = vpl.stats.vplMeanCut;
+                                   });
         if (!timed) {
             return;
         }
