@@ -199,12 +199,7 @@ TEST(DeringBake, BitIdenticalForOneAndTwoThreads) {
     for (const VolumeLayout layout : {VolumeLayout::Dense, VolumeLayout::Bricked}) {
         const Variant v{"", Method::Path, layout, sh::Order::L2, Storage::Float16};
         const BakeConfig c = cornellConfig(v, true);
-        BakeOptions one;
-        one.threads = 1;
-        BakeOptions two;
-        two.threads = 2;
-        Result<BakeResult> a = bake(scene, c, one);
-        Result<BakeResult> b = bake(scene, c, two);
+        auto [a, b] = test::bakeOnOneAndTwoThreads(scene, c);
         ASSERT_TRUE(a.ok() && b.ok());
         EXPECT_GT(a.value().stats.deringedProbes, 0u);
         EXPECT_EQ(a.value().stats.deringedProbes, b.value().stats.deringedProbes);

@@ -3,6 +3,7 @@
 // the relit cascade after a sun move, and how far the runtime's light is from the path method's.
 #include <cmath>
 #include <cstdio>
+#include <span>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -109,6 +110,25 @@ double relativeRms(const std::vector<sh::ShRgb>& a, const std::vector<sh::ShRgb>
         }
     }
     return std::sqrt(diff / ref);
+}
+
+// relativeRms, over `points`, of the twin's radiance from the `relit` fields and from the
+// `stale` ones against the offline LPV's.
+struct TwinVsOffline {
+    double relit;
+    double stale;
+};
+
+TwinVsOffline twinVsOffline(std::span<const GiCascadeLayout> layouts,
+                            std::span<const GiField> relit, std::span<const GiField> stale,
+                            const LpvCascades& offline, const std::vector<glm::vec3>& points) {
+    std::vector<sh::ShRgb> twin_relit, twin_stale, offline_lpv;
+    for (const glm::vec3& p : points) {
+        twin_relit.push_back(giSampleRadiance(layouts, relit, 0.0f, false, p));
+        twin_stale.push_back(giSampleRadiance(layouts, stale, 0.0f, false, p));
+        offline_lpv.push_back(offline.radiance(p));
+    }
+    return {relativeRms(twin_relit, offline_lpv), relativeRms(twin_stale, offline_lpv)};
 }
 
 // Points on a lattice inside the courtyard's open interior (x, z in -7..7, y in 0.5..4.5).
@@ -248,14 +268,8 @@ TEST(GiTwinAccuracy, SunMoveAgreesWithTheOfflineLpvAndIsCloseToThePathReference)
     const std::array<GiCascadeLayout, 1> layouts{layout};
     const std::array<GiField, 1> relit_fields{relit};
     const std::array<GiField, 1> stale_fields{stale};
-    std::vector<sh::ShRgb> twin_relit, twin_stale, offline_lpv;
-    for (const glm::vec3& p : points) {
-        twin_relit.push_back(giSampleRadiance(layouts, relit_fields, 0.0f, false, p));
-        twin_stale.push_back(giSampleRadiance(layouts, stale_fields, 0.0f, false, p));
-        offline_lpv.push_back(offline.radiance(p));
-    }
-    const double relit_vs_offline = relativeRms(twin_relit, offline_lpv);
-    const double stale_vs_offline = relativeRms(twin_stale, offline_lpv);
+    const auto [relit_vs_offline, stale_vs_offline] =
+        twinVsOffline(layouts, relit_fields, stale_fields, offline, points);
     std::printf("indirect, twin vs offline LPV for the moved sun: relit %.3f, stale %.3f\n",
                 relit_vs_offline, stale_vs_offline);
 
@@ -376,19 +390,16 @@ TEST(GiTwinAccuracy, PointLightMoveAndTheThinWall) {
     const LpvConfig lpv = offlineConfig(32);
     const LpvCascades offline = offlineCascade(scene, lpv, layout);
 
-    std::vector<sh::ShRgb> twin_relit, twin_stale, offline_lpv;
+    std::vector<glm::vec3> points;
     for (int x = 0; x < 8; ++x) {
         for (int y = 0; y < 3; ++y) {
             for (int z = 0; z < 4; ++z) {
-                const glm::vec3 p(-3.5f + float(x), 0.5f + 0.75f * float(y), -1.5f + float(z));
-                twin_relit.push_back(giSampleRadiance(layouts, relit, 0.0f, false, p));
-                twin_stale.push_back(giSampleRadiance(layouts, stale, 0.0f, false, p));
-                offline_lpv.push_back(offline.radiance(p));
+                points.emplace_back(-3.5f + float(x), 0.5f + 0.75f * float(y), -1.5f + float(z));
             }
         }
     }
-    const double relit_vs_offline = relativeRms(twin_relit, offline_lpv);
-    const double stale_vs_offline = relativeRms(twin_stale, offline_lpv);
+    const auto [relit_vs_offline, stale_vs_offline] =
+        twinVsOffline(layouts, relit, stale, offline, points);
     std::printf("point light moved, twin vs offline LPV: relit %.3f, stale %.3f\n",
                 relit_vs_offline, stale_vs_offline);
 

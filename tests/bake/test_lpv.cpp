@@ -202,30 +202,14 @@ TEST(LpvCascades, IrradianceIsContinuousAcrossCascadeBorders) {
 // Same input, bit-identical file for 1 and 2 threads (propagation and escape rays are split
 // across threads); another seed changes the VPLs and so the result.
 TEST(LpvDeterminism, BitIdenticalForOneAndTwoThreads) {
-    const auto dir = test::tempDir("lpv_determinism");
-    ASSERT_TRUE(writeGeneratedScene("cornell", dir / "cornell.gltf").ok());
-    Result<Scene> scene = loadGltf(dir / "cornell.gltf");
-    ASSERT_TRUE(scene.ok());
-    BakeConfig c;
-    c.method = Method::Lpv;
+    const Scene scene = test::generatedScene("cornell");
+    BakeConfig c = test::methodVolume(Method::Lpv, glm::uvec3(4, 4, 2));
     c.lpv.cascades = 2;
     c.lpv.directSamples = 16;
-    VolumeConfig v;
-    v.resolution = glm::uvec3(4, 4, 2);
-    c.volumes = {v};
-    BakeOptions one;
-    one.threads = 1;
-    BakeOptions two;
-    two.threads = 2;
-    Result<BakeResult> a = bake(scene.value(), c, one);
-    Result<BakeResult> b = bake(scene.value(), c, two);
+    auto [a, b] = test::bakeOnOneAndTwoThreads(scene, c);
     ASSERT_TRUE(a.ok() && b.ok());
-    a.value().file.metadata.bakeSeconds = b.value().file.metadata.bakeSeconds = 0;
-    EXPECT_EQ(encodePvol(a.value().file), encodePvol(b.value().file));
-    c.seed = 7;
-    Result<BakeResult> other = bake(scene.value(), c, one);
-    ASSERT_TRUE(other.ok());
-    EXPECT_NE(other.value().file.volumes[0].texelsF16, a.value().file.volumes[0].texelsF16);
+    test::expectSameFileButTiming(a.value(), b.value());
+    test::expectOtherSeedChangesTexels(scene, c, a.value());
 }
 
 TEST(LpvConfig, ParsesTheSectionAndRecordsResolvedValues) {

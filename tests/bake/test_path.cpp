@@ -35,6 +35,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "bake_test_support.hpp"
 #include "methods/irradiance_error.hpp"
 #include "methods/path_integrator.hpp"
 #include "probekit/baker/bench_rays.hpp"
@@ -47,12 +48,10 @@
 namespace probekit::baker {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using namespace test; // kPi, kSigmas, kFloatSlack, kGauss*, emptyScene, addMaterial
 
-// See the file comment for why these numbers.
+// See the file comment for why this number.
 constexpr int kProbes = 16;
-constexpr double kSigmas = 5.0;
-constexpr double kFloatSlack = 2e-5; // relative to the largest reference coefficient
 
 // Exact-arithmetic checks (delta projections, spot falloff): float evaluation of a handful of
 // terms, nothing random.
@@ -62,22 +61,6 @@ using ShDouble = std::array<glm::dvec3, sh::kMaxCoefficients>;
 
 // ---------------------------------------------------------------------------------------------
 // Scene building.
-
-Scene emptyScene() {
-    Scene scene;
-    scene.materials.push_back(Material{});
-    scene.environment.type = Environment::Type::Constant;
-    scene.environment.constant = glm::vec3(0.0f);
-    return scene;
-}
-
-uint32_t addMaterial(Scene& scene, glm::vec3 albedo, glm::vec3 emission) {
-    Material material;
-    material.baseColor = albedo;
-    material.emission = emission;
-    scene.materials.push_back(material);
-    return uint32_t(scene.materials.size() - 1);
-}
 
 void addTriangle(Scene& scene, glm::vec3 a, glm::vec3 b, glm::vec3 c, uint32_t material) {
     const auto base = uint32_t(scene.positions.size());
@@ -171,6 +154,56 @@ std::unique_ptr<RayTracer> buildTracer(const Scene& scene) {
     return tracer.ok() ? std::move(tracer).value() : nullptr;
 }
 
+// The scene's bounds, then its tracer (nullptr, and a failure, when that cannot be built).
+std::unique_ptr<RayTracer> boundedTracer(Scene& scene) {
+    computeBounds(scene);
+    return buildTracer(scene);
+}
+
+// The rectangle as one quad of `material`, wound origin, +S, +S+T, +T.
+void addRectangle(Scene& scene, const Rectangle& r, uint32_t material) {
+    const auto p = r.polygon();
+    addQuad(scene, glm::vec3(p[0]), glm::vec3(p[1]), glm::vec3(p[2]), glm::vec3(p[3]), material);
+}
+
+// A 10 x 10 m floor of `albedo` (no emission) centred under the origin; its rectangle.
+Rectangle addWideFloor(Scene& scene, double albedo) {
+    const Rectangle floor{{-5.0, 0.0, -5.0}, {0.0, 0.0, 10.0}, {10.0, 0.0, 0.0}};
+    addRectangle(scene, floor, addMaterial(scene, glm::vec3(float(albedo)), glm::vec3(0.0f)));
+    return floor;
+}
+
+// The mean of independent values and its standard error (from the sample variance).
+struct MeanAndError {
+    double mean;
+    double standardError;
+};
+
+MeanAndError meanAndStandardError(const std::vector<double>& values) {
+    double mean = 0.0, variance = 0.0;
+    for (double v : values) {
+        mean += v / values.size();
+    }
+    for (double v : values) {
+        variance += (v - mean) * (v - mean) / (values.size() - 1);
+    }
+    return {mean, std::sqrt(variance / values.size())};
+}
+
+// Sum over the pixels of a lat-long image of texel x the pixel's exact solid angle.
+glm::dvec3 pixelSum(const Image& image) {
+    glm::dvec3 sum(0.0);
+    for (uint32_t y = 0; y < image.height; ++y) {
+        const double solid_angle =
+            2.0 * kPi / image.width *
+            (std::cos(kPi * y / image.height) - std::cos(kPi * (y + 1) / image.height));
+        for (uint32_t x = 0; x < image.width; ++x) {
+            sum += glm::dvec3(image.texels[size_t(y) * image.width + x]) * solid_angle;
+        }
+    }
+    return sum;
+}
+
 // A lat-long image given by a function of the texel centre's world direction (before rotation).
 Image latLongImage(uint32_t width, uint32_t height,
                    const std::function<glm::vec3(glm::dvec3, uint32_t, uint32_t)>& texel) {
@@ -201,14 +234,6 @@ std::array<double, sh::kMaxCoefficients> basis(glm::dvec3 d) {
     }
     return out;
 }
-
-// Gauss-Legendre, 8 points on [-1, 1]: exact for polynomials of degree 15.
-constexpr std::array<double, 8> kGaussNodes = {
-    -0.9602898564975363, -0.7966664774136267, -0.5255324099163290, -0.1834346424956498,
-    0.1834346424956498,  0.5255324099163290,  0.7966664774136267,  0.9602898564975363};
-constexpr std::array<double, 8> kGaussWeights = {
-    0.1012285362903763, 0.2223810344533745, 0.3137066458778873, 0.3626837833783620,
-    0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763};
 
 // Integral of f over [a, b], split into `pieces` equal parts with 8 Gauss points each.
 double integrate1d(const std::function<double(double)>& f, double a, double b, int pieces) {
@@ -426,6 +451,24 @@ void expectShMatches(const std::string& what, const ShEstimate& e, const ShDoubl
     expectCoefficientsMatch(what, e, reference, sh::coefficientCount(order));
 }
 
+// The estimate of a probe at the origin from 4096 directions.
+ShEstimate estimateAtOrigin(const Scene& scene, const RayTracer& tracer, sh::Order order) {
+    PathConfig settings;
+    settings.samples = 4096;
+    return estimate(bakeProbes(scene, tracer, settings, order, glm::vec3(0.0f)));
+}
+
+// A probe at `probe` baked with 4096 directions and up to 4 bounces matches `reference` (L2).
+void expectBakeMatches(const Scene& scene, const RayTracer& tracer, glm::dvec3 probe,
+                       const ShDouble& reference) {
+    PathConfig settings;
+    settings.samples = 4096;
+    settings.maxBounces = 4;
+    const ShEstimate e =
+        estimate(bakeProbes(scene, tracer, settings, sh::Order::L2, glm::vec3(probe)));
+    expectShMatches("sh", e, reference, sh::Order::L2);
+}
+
 ShDouble constantSh(glm::dvec3 l00) {
     ShDouble out{};
     out[0] = l00;
@@ -442,8 +485,7 @@ double relativeError(double value, double reference) {
 TEST(RayTracerTest, HitReportsDistanceBarycentricsNormalAndFace) {
     Scene scene = emptyScene();
     addTriangle(scene, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, 0); // winding normal +z
-    computeBounds(scene);
-    const auto tracer = buildTracer(scene);
+    const auto tracer = boundedTracer(scene);
     ASSERT_TRUE(tracer);
 
     const std::optional<Hit> front = tracer->intersect({0.25f, 0.5f, 2.0f}, {0, 0, -1});
@@ -504,8 +546,7 @@ TEST(RayTracerTest, OffsetOriginPreventsSelfIntersection) {
         const glm::vec3 b = shift + glm::vec3(1.3f, 0.2f, -0.4f);
         const glm::vec3 c = shift + glm::vec3(-0.2f, 0.9f, 1.1f);
         addTriangle(scene, a, b, c, 0);
-        computeBounds(scene);
-        const auto tracer = buildTracer(scene);
+        const auto tracer = boundedTracer(scene);
         ASSERT_TRUE(tracer);
         const glm::vec3 n = glm::normalize(glm::cross(b - a, c - a));
         Rng rng(42);
@@ -554,8 +595,7 @@ TEST(PathTracerFurnace, ClosedSphereRadianceIsEmissionOverOneMinusAlbedo) {
         Scene scene = emptyScene();
         addIcosphere(scene, glm::vec3(0.0f), 1.0f, 3,
                      addMaterial(scene, test_case.albedo, test_case.emission));
-        computeBounds(scene);
-        const auto tracer = buildTracer(scene);
+        const auto tracer = boundedTracer(scene);
         ASSERT_TRUE(tracer);
         for (const uint32_t bounces : {0u, 1u, 2u, 64u}) {
             PathConfig settings;
@@ -709,9 +749,7 @@ TEST(PathTracerPointLight, PointAndDirectionalLightOnFloorMatchQuadrature) {
     Scene scene = emptyScene();
     const double albedo = 0.5;
     const Rectangle floor{{-3.0, 0.0, -3.0}, {0.0, 0.0, 6.0}, {6.0, 0.0, 0.0}};
-    const auto f = floor.polygon();
-    addQuad(scene, glm::vec3(f[0]), glm::vec3(f[1]), glm::vec3(f[2]), glm::vec3(f[3]),
-            addMaterial(scene, glm::vec3(float(albedo)), glm::vec3(0.0f)));
+    addRectangle(scene, floor, addMaterial(scene, glm::vec3(float(albedo)), glm::vec3(0.0f)));
     computeBounds(scene);
     PunctualLight point;
     point.type = LightType::Point;
@@ -745,12 +783,7 @@ TEST(PathTracerPointLight, PointAndDirectionalLightOnFloorMatchQuadrature) {
         reference[c] += glm::dvec3(point.intensity) / glm::dot(v, v) * y_point[c] +
                         glm::dvec3(sun.intensity) * y_sun[c];
     }
-    PathConfig settings;
-    settings.samples = 4096;
-    settings.maxBounces = 4;
-    const ShEstimate e =
-        estimate(bakeProbes(scene, *tracer, settings, sh::Order::L2, glm::vec3(probe)));
-    expectShMatches("sh", e, reference, sh::Order::L2);
+    expectBakeMatches(scene, *tracer, probe, reference);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -778,15 +811,8 @@ TEST(PathTracerEnvironment, ConstantSkyGivesPiLIrradiance) {
         for (const ProbeSample& p : probes) {
             values.push_back(sh::irradiance(p.sh, sh::Order::L2, n).z);
         }
-        double mean = 0.0, variance = 0.0;
-        for (double v : values) {
-            mean += v / values.size();
-        }
-        for (double v : values) {
-            variance += (v - mean) * (v - mean) / (values.size() - 1);
-        }
-        const double standard_error = std::sqrt(variance / values.size());
-        EXPECT_NEAR(mean, kPi * sky.z, kSigmas * standard_error + kFloatSlack * kPi * sky.z);
+        const MeanAndError m = meanAndStandardError(values);
+        EXPECT_NEAR(m.mean, kPi * sky.z, kSigmas * m.standardError + kFloatSlack * kPi * sky.z);
     }
 }
 
@@ -818,23 +844,11 @@ TEST(PathTracerEnvironment, LatLongSkyMatchesNumericalIntegration) {
     scene.environment = syntheticSky(false);
     const auto tracer = buildTracer(scene);
     ASSERT_TRUE(tracer);
-    PathConfig settings;
-    settings.samples = 4096;
-    const ShEstimate e =
-        estimate(bakeProbes(scene, *tracer, settings, sh::Order::L2, glm::vec3(0.0f)));
+    const ShEstimate e = estimateAtOrigin(scene, *tracer, sh::Order::L2);
     const ShDouble reference = environmentSh(scene.environment);
     expectShMatches("quadrature", e, reference, sh::Order::L2);
 
-    const Image& image = scene.environment.image;
-    glm::dvec3 pixel_sum(0.0);
-    for (uint32_t y = 0; y < image.height; ++y) {
-        const double solid_angle =
-            2.0 * kPi / image.width *
-            (std::cos(kPi * y / image.height) - std::cos(kPi * (y + 1) / image.height));
-        for (uint32_t x = 0; x < image.width; ++x) {
-            pixel_sum += glm::dvec3(image.texels[size_t(y) * image.width + x]) * solid_angle;
-        }
-    }
+    glm::dvec3 pixel_sum = pixelSum(scene.environment.image);
     pixel_sum *= double(scene.environment.intensity) * sh::kY00;
     const double allowance = glm::length(pixel_sum - reference[0]);
     EXPECT_LT(allowance, 0.01 * reference[0].x); // the two integrals are close to begin with
@@ -856,8 +870,7 @@ TEST(PathTracerEmissive, QuadSeenDirectlyMatchesLambertFormulaFromBothSides) {
     addQuad(scene, glm::vec3(p[0]), glm::vec3(p[1]), glm::vec3(p[2]), glm::vec3(p[3]),
             addMaterial(scene, glm::vec3(0.0f), glm::vec3(radiance)));
     ASSERT_GT(glm::cross(quad.edgeS, quad.edgeT).y, 0.0); // winding faces +y
-    computeBounds(scene);
-    const auto tracer = buildTracer(scene);
+    const auto tracer = boundedTracer(scene);
     ASSERT_TRUE(tracer);
     PathConfig settings;
     settings.samples = 4096;
@@ -881,60 +894,53 @@ TEST(PathTracerEmissive, QuadSeenDirectlyMatchesLambertFormulaFromBothSides) {
             const glm::dvec3 l1(s.sh.rgb[3].y, s.sh.rgb[1].y, s.sh.rgb[2].y);
             values.push_back(glm::dot(n, l1) / sh::kY1);
         }
-        double mean = 0.0, variance = 0.0;
-        for (double v : values) {
-            mean += v / values.size();
-        }
-        for (double v : values) {
-            variance += (v - mean) * (v - mean) / (values.size() - 1);
-        }
-        EXPECT_NEAR(mean, expected, kSigmas * std::sqrt(variance / values.size()))
-            << "probe y " << probe.y;
+        const MeanAndError m = meanAndStandardError(values);
+        EXPECT_NEAR(m.mean, expected, kSigmas * m.standardError) << "probe y " << probe.y;
     }
 }
 
-// The same square (emission only, black, winding facing away from the floor) 2 m above a
-// 6 x 6 m floor of albedo 0.6; the probe sits between them. The floor is lit once: its radiance
-// at x is (a / pi) E(x) with E(x) from Lambert's polygon formula; nothing else reflects (the
-// quad is black, the floor flat, the sky black). Reference: Gauss quadrature of L Y dw over the
-// quad and over the floor. Paths reach the quad's light by next-event estimation (its back
+// quadOverFloor: the same square (emission only, black, winding facing away from the floor) 2 m
+// above a 6 x 6 m floor of albedo 0.6; the probe sits between them. The floor is lit once: its
+// radiance at x is (a / pi) E(x) with E(x) from Lambert's polygon formula; nothing else reflects
+// (the quad is black, the floor flat, the sky black). Reference: Gauss quadrature of L Y dw over
+// the quad and over the floor. Paths reach the quad's light by next-event estimation (its back
 // face: two-sided emission) and by cosine sampling, MIS-weighted.
-TEST(PathTracerEmissive, QuadLightingFloorMatchesQuadrature) {
-    Scene scene = emptyScene();
+struct QuadOverFloor {
+    Scene scene;
+    glm::dvec3 probe;
+    ShDouble reference;
+};
+
+QuadOverFloor quadOverFloor() {
+    QuadOverFloor out{emptyScene(), glm::dvec3(0.4, 1.0, -0.3), {}};
     const glm::dvec3 radiance(2.0, 3.0, 4.0);
     const double albedo = 0.6;
     const Rectangle quad{{-0.5, 2.0, -0.5}, {0.0, 0.0, 1.0}, {1.0, 0.0, 0.0}};
     const Rectangle floor{{-3.0, 0.0, -3.0}, {0.0, 0.0, 6.0}, {6.0, 0.0, 0.0}};
     const auto q = quad.polygon();
-    const auto f = floor.polygon();
-    addQuad(scene, glm::vec3(q[0]), glm::vec3(q[1]), glm::vec3(q[2]), glm::vec3(q[3]),
-            addMaterial(scene, glm::vec3(0.0f), glm::vec3(radiance)));
-    addQuad(scene, glm::vec3(f[0]), glm::vec3(f[1]), glm::vec3(f[2]), glm::vec3(f[3]),
-            addMaterial(scene, glm::vec3(float(albedo)), glm::vec3(0.0f)));
-    computeBounds(scene);
-    const auto tracer = buildTracer(scene);
-    ASSERT_TRUE(tracer);
-
-    const glm::dvec3 probe(0.4, 1.0, -0.3);
+    addRectangle(out.scene, quad, addMaterial(out.scene, glm::vec3(0.0f), glm::vec3(radiance)));
+    addRectangle(out.scene, floor,
+                 addMaterial(out.scene, glm::vec3(float(albedo)), glm::vec3(0.0f)));
     const ShDouble direct = rectangleSh(
-        probe, quad.origin, quad.edgeS, quad.edgeT, [&](glm::dvec3) { return radiance; }, 4);
+        out.probe, quad.origin, quad.edgeS, quad.edgeT, [&](glm::dvec3) { return radiance; }, 4);
     const ShDouble reflected = rectangleSh(
-        probe, floor.origin, floor.edgeS, floor.edgeT,
+        out.probe, floor.origin, floor.edgeS, floor.edgeT,
         [&](glm::dvec3 x) {
             const double e = glm::dot(glm::dvec3(0, 1, 0), polygonVectorIrradiance(x, q));
             return radiance * (albedo / kPi * e);
         },
         24);
-    ShDouble reference{};
     for (int c = 0; c < sh::kMaxCoefficients; ++c) {
-        reference[c] = direct[c] + reflected[c];
+        out.reference[c] = direct[c] + reflected[c];
     }
-    PathConfig settings;
-    settings.samples = 4096;
-    settings.maxBounces = 4;
-    const ShEstimate e =
-        estimate(bakeProbes(scene, *tracer, settings, sh::Order::L2, glm::vec3(probe)));
-    expectShMatches("sh", e, reference, sh::Order::L2);
+    return out;
+}
+
+TEST(PathTracerEmissive, QuadLightingFloorMatchesQuadrature) {
+    QuadOverFloor c = quadOverFloor();
+    const auto tracer = boundedTracer(c.scene);
+    ASSERT_TRUE(tracer);
+    expectBakeMatches(c.scene, *tracer, c.probe, c.reference);
 }
 
 // A 10 x 10 m floor of albedo 0.6 under the synthetic sky, black below the horizon (and in the
@@ -949,12 +955,8 @@ TEST(PathTracerEnvironment, SkyLightingFloorMatchesQuadrature) {
     Scene scene = emptyScene();
     scene.environment = syntheticSky(true);
     const double albedo = 0.6;
-    const Rectangle floor{{-5.0, 0.0, -5.0}, {0.0, 0.0, 10.0}, {10.0, 0.0, 0.0}};
-    const auto f = floor.polygon();
-    addQuad(scene, glm::vec3(f[0]), glm::vec3(f[1]), glm::vec3(f[2]), glm::vec3(f[3]),
-            addMaterial(scene, glm::vec3(float(albedo)), glm::vec3(0.0f)));
-    computeBounds(scene);
-    const auto tracer = buildTracer(scene);
+    const Rectangle floor = addWideFloor(scene, albedo);
+    const auto tracer = boundedTracer(scene);
     ASSERT_TRUE(tracer);
 
     const glm::dvec3 probe(0.3, 1.0, -0.2);
@@ -969,12 +971,7 @@ TEST(PathTracerEnvironment, SkyLightingFloorMatchesQuadrature) {
     for (int c = 0; c < sh::kMaxCoefficients; ++c) {
         reference[c] = sky[c] + reflected[c];
     }
-    PathConfig settings;
-    settings.samples = 4096;
-    settings.maxBounces = 4;
-    const ShEstimate e =
-        estimate(bakeProbes(scene, *tracer, settings, sh::Order::L2, glm::vec3(probe)));
-    expectShMatches("sh", e, reference, sh::Order::L2);
+    expectBakeMatches(scene, *tracer, probe, reference);
 }
 
 // Same floor under a constant sky (not importance sampled: the continuation alone finds it):
@@ -984,12 +981,8 @@ TEST(PathTracerEnvironment, ConstantSkyLightingFloorMatchesQuadrature) {
     const glm::dvec3 sky(1.0, 0.5, 0.25);
     scene.environment.constant = glm::vec3(sky);
     const double albedo = 0.6;
-    const Rectangle floor{{-5.0, 0.0, -5.0}, {0.0, 0.0, 10.0}, {10.0, 0.0, 0.0}};
-    const auto f = floor.polygon();
-    addQuad(scene, glm::vec3(f[0]), glm::vec3(f[1]), glm::vec3(f[2]), glm::vec3(f[3]),
-            addMaterial(scene, glm::vec3(float(albedo)), glm::vec3(0.0f)));
-    computeBounds(scene);
-    const auto tracer = buildTracer(scene);
+    const Rectangle floor = addWideFloor(scene, albedo);
+    const auto tracer = boundedTracer(scene);
     ASSERT_TRUE(tracer);
     const glm::dvec3 probe(0.3, 1.0, -0.2);
     // Sky everywhere, minus the sky hidden by the floor, plus the floor.
@@ -1001,12 +994,7 @@ TEST(PathTracerEnvironment, ConstantSkyLightingFloorMatchesQuadrature) {
     for (int c = 0; c < sh::kMaxCoefficients; ++c) {
         reference[c] -= hidden[c];
     }
-    PathConfig settings;
-    settings.samples = 4096;
-    settings.maxBounces = 4;
-    const ShEstimate e =
-        estimate(bakeProbes(scene, *tracer, settings, sh::Order::L2, glm::vec3(probe)));
-    expectShMatches("sh", e, reference, sh::Order::L2);
+    expectBakeMatches(scene, *tracer, probe, reference);
 }
 
 // The Uffizi probe (if the shared data and the loader are present): L00 against the pixel sum
@@ -1023,22 +1011,15 @@ TEST(PathTracerEnvironment, UffiziL00MatchesPixelSum) {
     scene.environment = std::move(env).value();
     const auto tracer = buildTracer(scene);
     ASSERT_TRUE(tracer);
-    PathConfig settings;
-    settings.samples = 4096;
-    const ShEstimate e =
-        estimate(bakeProbes(scene, *tracer, settings, sh::Order::L1, glm::vec3(0.0f)));
+    const ShEstimate e = estimateAtOrigin(scene, *tracer, sh::Order::L1);
 
     const Image& image = scene.environment.image;
-    glm::dvec3 pixel_sum(0.0);
+    glm::dvec3 pixel_sum = pixelSum(image);
     std::vector<glm::dvec3> row_mean(image.height, glm::dvec3(0.0));
     for (uint32_t y = 0; y < image.height; ++y) {
-        const double solid_angle =
-            2.0 * kPi / image.width *
-            (std::cos(kPi * y / image.height) - std::cos(kPi * (y + 1) / image.height));
         for (uint32_t x = 0; x < image.width; ++x) {
-            const glm::dvec3 texel(image.texels[size_t(y) * image.width + x]);
-            pixel_sum += texel * solid_angle;
-            row_mean[y] += texel / double(image.width);
+            row_mean[y] +=
+                glm::dvec3(image.texels[size_t(y) * image.width + x]) / double(image.width);
         }
     }
     pixel_sum *= sh::kY00;
@@ -1081,8 +1062,7 @@ TEST(PathTracerValidity, BackFaceFractionInsideAndOutsideClosedBox) {
     addBox(scene, glm::vec3(-1.0f), glm::vec3(1.0f),
            addMaterial(scene, glm::vec3(0.5f), glm::vec3(0.0f)));
     scene.environment.constant = glm::vec3(1.0f);
-    computeBounds(scene);
-    const auto tracer = buildTracer(scene);
+    const auto tracer = boundedTracer(scene);
     ASSERT_TRUE(tracer);
     PathConfig settings;
     settings.samples = 256;
@@ -1103,8 +1083,7 @@ TEST(PathTracerDeterminism, SameInputsBitIdenticalAcrossThreads) {
     light.position = glm::vec3(0.2f, 0.5f, 0.1f);
     light.intensity = glm::vec3(1.0f);
     scene.lights.push_back(light);
-    computeBounds(scene);
-    const auto tracer = buildTracer(scene);
+    const auto tracer = boundedTracer(scene);
     ASSERT_TRUE(tracer);
     // Fixed sampling, and adaptive sampling whose probes stop after different batch counts.
     for (const float noise_target : {0.0f, 0.02f}) {
@@ -1233,8 +1212,7 @@ TEST(PathTracerAdaptive, NoiseEstimateUnbiasedOnAnalyticScenes) {
         Scene scene = emptyScene();
         addIcosphere(scene, glm::vec3(0.0f), 1.0f, 3,
                      addMaterial(scene, glm::vec3(0.8f), glm::vec3(1.0f)));
-        computeBounds(scene);
-        const auto tracer = buildTracer(scene);
+        const auto tracer = boundedTracer(scene);
         ASSERT_TRUE(tracer);
         PathConfig settings;
         settings.samples = 128;
@@ -1245,34 +1223,12 @@ TEST(PathTracerAdaptive, NoiseEstimateUnbiasedOnAnalyticScenes) {
         EXPECT_GT(mean_samples, 2.0 * settings.samples); // the target, not the minimum, ruled
     }
     {
-        Scene scene = emptyScene();
-        const glm::dvec3 radiance(2.0, 3.0, 4.0);
-        const double albedo = 0.6;
-        const Rectangle quad{{-0.5, 2.0, -0.5}, {0.0, 0.0, 1.0}, {1.0, 0.0, 0.0}};
-        const Rectangle floor{{-3.0, 0.0, -3.0}, {0.0, 0.0, 6.0}, {6.0, 0.0, 0.0}};
-        const auto q = quad.polygon();
-        const auto f = floor.polygon();
-        addQuad(scene, glm::vec3(q[0]), glm::vec3(q[1]), glm::vec3(q[2]), glm::vec3(q[3]),
-                addMaterial(scene, glm::vec3(0.0f), glm::vec3(radiance)));
-        addQuad(scene, glm::vec3(f[0]), glm::vec3(f[1]), glm::vec3(f[2]), glm::vec3(f[3]),
-                addMaterial(scene, glm::vec3(float(albedo)), glm::vec3(0.0f)));
-        computeBounds(scene);
-        const auto tracer = buildTracer(scene);
+        QuadOverFloor c = quadOverFloor();
+        const auto tracer = boundedTracer(c.scene);
         ASSERT_TRUE(tracer);
-        const glm::dvec3 probe(0.4, 1.0, -0.3);
-        const ShDouble direct = rectangleSh(
-            probe, quad.origin, quad.edgeS, quad.edgeT, [&](glm::dvec3) { return radiance; }, 4);
-        const ShDouble reflected = rectangleSh(
-            probe, floor.origin, floor.edgeS, floor.edgeT,
-            [&](glm::dvec3 x) {
-                const double e = glm::dot(glm::dvec3(0, 1, 0), polygonVectorIrradiance(x, q));
-                return radiance * (albedo / kPi * e);
-            },
-            24);
-        ShDouble reference{};
-        for (int c = 0; c < sh::kMaxCoefficients; ++c) {
-            reference[c] = direct[c] + reflected[c];
-        }
+        const Scene& scene = c.scene;
+        const glm::dvec3 probe = c.probe;
+        const ShDouble& reference = c.reference;
         PathConfig settings;
         settings.samples = 128;
         settings.maxBounces = 4;

@@ -40,29 +40,23 @@
 namespace probekit::baker {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
+using test::kFloatSlack;
+using test::kGaussNodes;
+using test::kGaussWeights;
+using test::kPi;
+using test::kSigmas;
 
 // See the file comment.
-constexpr double kSigmas = 5.0;
 constexpr int kSeeds = 16;
-constexpr double kFloatSlack = 2e-5; // relative to the largest reference coefficient
 
 // ---------------------------------------------------------------------------------------------
 // Scenes, built face by face.
 
 class SceneBuilder {
 public:
-    SceneBuilder() {
-        m_scene.materials.push_back(Material{});
-        m_scene.environment.type = Environment::Type::Constant;
-        m_scene.environment.constant = glm::vec3(0.0f);
-    }
+    SceneBuilder() : m_scene(test::emptyScene()) {}
     uint32_t material(glm::vec3 albedo, glm::vec3 emission = glm::vec3(0.0f)) {
-        Material m;
-        m.baseColor = albedo;
-        m.emission = emission;
-        m_scene.materials.push_back(m);
-        return uint32_t(m_scene.materials.size() - 1);
+        return test::addMaterial(m_scene, albedo, emission);
     }
     // A planar quad corner, corner + u, corner + u + v, corner + v, wound so that its normal
     // points along `facing`.
@@ -134,14 +128,6 @@ void writeFailure(const std::string& name, const std::string& text) {
 // ---------------------------------------------------------------------------------------------
 // Quadrature.
 
-// Gauss-Legendre, 8 points on [-1, 1].
-constexpr std::array<double, 8> kNodes = {
-    -0.9602898564975363, -0.7966664774136267, -0.5255324099163290, -0.1834346424956498,
-    0.1834346424956498,  0.5255324099163290,  0.7966664774136267,  0.9602898564975363};
-constexpr std::array<double, 8> kWeights = {
-    0.1012285362903763, 0.2223810344533745, 0.3137066458778873, 0.3626837833783620,
-    0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763};
-
 // Integral of f(x, z) over the square [-half, half]^2, cells x cells pieces of 8 x 8 points.
 double integrateSquare(double half, int cells, const std::function<double(double, double)>& f) {
     const double h = 2.0 * half / cells;
@@ -150,9 +136,9 @@ double integrateSquare(double half, int cells, const std::function<double(double
         for (int j = 0; j < cells; ++j) {
             for (int a = 0; a < 8; ++a) {
                 for (int b = 0; b < 8; ++b) {
-                    const double x = -half + (i + 0.5 + 0.5 * kNodes[a]) * h;
-                    const double z = -half + (j + 0.5 + 0.5 * kNodes[b]) * h;
-                    sum += kWeights[a] * kWeights[b] * 0.25 * h * h * f(x, z);
+                    const double x = -half + (i + 0.5 + 0.5 * kGaussNodes[a]) * h;
+                    const double z = -half + (j + 0.5 + 0.5 * kGaussNodes[b]) * h;
+                    sum += kGaussWeights[a] * kGaussWeights[b] * 0.25 * h * h * f(x, z);
                 }
             }
         }
@@ -759,25 +745,12 @@ TEST_F(VplRoom, LightcutErrorStaysWithinItsBound) {
 // Bakes: determinism, config.
 
 TEST(VplBake, BitIdenticalForOneAndTwoThreadsAndRecordsResolvedSettings) {
-    const auto dir = std::filesystem::temp_directory_path() / "probekit_test_vpl";
-    std::filesystem::create_directories(dir);
-    ASSERT_TRUE(writeGeneratedScene("cornell", dir / "cornell.gltf").ok());
-    Result<Scene> scene = loadGltf(dir / "cornell.gltf");
-    ASSERT_TRUE(scene.ok());
-    BakeConfig c;
-    c.method = Method::Vpl;
+    const Scene scene = test::generatedScene("cornell");
+    BakeConfig c = test::methodVolume(Method::Vpl, glm::uvec3(4, 4, 2));
     c.vpl.count = 4096;
-    VolumeConfig v;
-    v.resolution = glm::uvec3(4, 4, 2);
-    c.volumes = {v};
-    BakeOptions one, two;
-    one.threads = 1;
-    two.threads = 2;
-    Result<BakeResult> a = bake(scene.value(), c, one);
-    Result<BakeResult> b = bake(scene.value(), c, two);
+    auto [a, b] = test::bakeOnOneAndTwoThreads(scene, c);
     ASSERT_TRUE(a.ok() && b.ok());
-    a.value().file.metadata.bakeSeconds = b.value().file.metadata.bakeSeconds = 0;
-    EXPECT_EQ(encodePvol(a.value().file), encodePvol(b.value().file));
+    test::expectSameFileButTiming(a.value(), b.value());
     EXPECT_GT(a.value().stats.vpls, 0u);
     EXPECT_GT(a.value().stats.vplMeanCut, 0.0);
 
@@ -788,10 +761,7 @@ TEST(VplBake, BitIdenticalForOneAndTwoThreadsAndRecordsResolvedSettings) {
     EXPECT_EQ(json.find("\"clamp_distance\":\"auto\""), std::string::npos) << json;
     EXPECT_EQ(json.find("\"near_field\":\"auto\""), std::string::npos) << json;
 
-    c.seed = 7;
-    Result<BakeResult> other = bake(scene.value(), c, one);
-    ASSERT_TRUE(other.ok());
-    EXPECT_NE(other.value().file.volumes[0].texelsF16, a.value().file.volumes[0].texelsF16);
+    test::expectOtherSeedChangesTexels(scene, c, a.value());
 }
 
 // The automatic count: 4 x area / spacing^2 as a power of two in 16384..65536.

@@ -95,4 +95,34 @@ Result<BakeResult> bakeCornell(const BakeConfig& config) {
     return bake(cornellScene(), config, options);
 }
 
+std::optional<VersusPath> timeAgainstPath(benchmark::State& state, const std::string& method,
+                                          int digits, const std::string& ratio_key,
+                                          const BakeConfig& config, const BakeConfig& path_config,
+                                          int rounds,
+                                          const std::function<void(const BakeResult&)>& each) {
+    VersusPath out;
+    for (int round = 0; round < rounds; ++round) {
+        Result<BakeResult> result = bakeCornell(config);
+        Result<BakeResult> path = bakeCornell(path_config);
+        if (!result || !path) {
+            state.SkipWithError((result ? path : result).error().message.c_str());
+            return std::nullopt;
+        }
+        out.seconds += result.value().stats.seconds;
+        out.pathSeconds += path.value().stats.seconds;
+        if (each) {
+            each(result.value());
+        }
+        std::printf("[%s cornell] 16^3 round %d: %s %.*f s, path at 4096 samples %.2f s\n",
+                    method.c_str(), round + 1, method.c_str(), digits, result.value().stats.seconds,
+                    path.value().stats.seconds);
+    }
+    out.ratio = out.seconds / out.pathSeconds;
+    state.counters[method + "_s"] = out.seconds / rounds;
+    state.counters["path4096_s"] = out.pathSeconds / rounds;
+    state.counters["time_ratio"] = out.ratio;
+    results()[ratio_key] = out.ratio;
+    return out;
+}
+
 } // namespace probekit::bench

@@ -2,11 +2,14 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include <benchmark/benchmark.h>
 #include <glm/vec3.hpp>
 
 #include "probekit/baker/bake.hpp"
@@ -38,5 +41,23 @@ double relRmse(const std::vector<std::vector<glm::dvec3>>& e,
                const std::vector<std::vector<glm::dvec3>>& reference);
 // A bake of the shared Cornell box on benchThreads() threads.
 Result<baker::BakeResult> bakeCornell(const baker::BakeConfig& config);
+
+// A method's bake time against the path method's, summed over alternating Cornell bakes.
+struct VersusPath {
+    double seconds = 0.0;
+    double pathSeconds = 0.0;
+    double ratio = 0.0; // seconds / pathSeconds
+};
+// `rounds` rounds of bakeCornell(config) then bakeCornell(path_config) (alternating, so both see
+// the same load on average), each printed as "[<method> cornell] 16^3 round ..." with the
+// method's seconds to `digits` decimals, and `each` (when set) called with the method's result.
+// Records the counters `<method>_s` and path4096_s (means per round) and time_ratio on `state`,
+// and the ratio as results()[ratio_key]. When a bake fails: skips `state` with the first error
+// (the method's before the path's) and returns nothing.
+std::optional<VersusPath>
+timeAgainstPath(benchmark::State& state, const std::string& method, int digits,
+                const std::string& ratio_key, const baker::BakeConfig& config,
+                const baker::BakeConfig& path_config, int rounds,
+                const std::function<void(const baker::BakeResult& result)>& each = {});
 
 } // namespace probekit::bench

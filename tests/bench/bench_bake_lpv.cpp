@@ -9,6 +9,7 @@
 // <= 20%, and a 16x16x16 volume over the box baked in <= 3% of the path method's time at 4096
 // samples. Each benchmark prints its table; the counters carry the same figures.
 #include <cstdio>
+#include <optional>
 #include <vector>
 
 #include <benchmark/benchmark.h>
@@ -94,27 +95,14 @@ void BM_LpvVsPath16Cubed(benchmark::State& state) {
         const BakeConfig lpv_config = volume16(Method::Lpv);
         BakeConfig path_config = volume16(Method::Path);
         path_config.path.samples = 4096;
-        double lpv_seconds = 0.0, path_seconds = 0.0;
-        for (int round = 0; round < kRounds; ++round) {
-            Result<BakeResult> lpv = bench::bakeCornell(lpv_config);
-            Result<BakeResult> path = bench::bakeCornell(path_config);
-            if (!lpv || !path) {
-                state.SkipWithError((lpv ? path : lpv).error().message.c_str());
-                return;
-            }
-            lpv_seconds += lpv.value().stats.seconds;
-            path_seconds += path.value().stats.seconds;
-            std::printf("[lpv cornell] 16^3 round %d: lpv %.3f s, path at 4096 samples %.2f s\n",
-                        round + 1, lpv.value().stats.seconds, path.value().stats.seconds);
+        const std::optional<bench::VersusPath> timed = bench::timeAgainstPath(
+            state, "lpv", 3, "lpv16_ratio", lpv_config, path_config, kRounds);
+        if (!timed) {
+            return;
         }
-        const double ratio = lpv_seconds / path_seconds;
-        state.counters["lpv_s"] = lpv_seconds / kRounds;
-        state.counters["path4096_s"] = path_seconds / kRounds;
-        state.counters["time_ratio"] = ratio;
-        bench::results()["lpv16_ratio"] = ratio;
         std::printf("[lpv cornell] 16^3: lpv (defaults) %.3f s, path at 4096 samples %.2f s "
                     "(means of %d): ratio %.4f (target <= 0.03), %u threads\n",
-                    lpv_seconds / kRounds, path_seconds / kRounds, kRounds, ratio,
+                    timed->seconds / kRounds, timed->pathSeconds / kRounds, kRounds, timed->ratio,
                     bench::benchThreads());
     }
 }

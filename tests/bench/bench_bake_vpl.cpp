@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <vector>
 
 #include <benchmark/benchmark.h>
@@ -164,32 +165,22 @@ void BM_VplVsPath16Cubed(benchmark::State& state) {
         BakeConfig path_config = vpl_config;
         path_config.method = Method::Path;
         path_config.path.samples = 4096;
-        double vpl_seconds = 0.0, path_seconds = 0.0, cut = 0.0;
+        double cut = 0.0;
         uint64_t vpls = 0;
-        for (int round = 0; round < kRounds; ++round) {
-            Result<BakeResult> vpl = bakeCornell(vpl_config);
-            Result<BakeResult> path = bakeCornell(path_config);
-            if (!vpl || !path) {
-                state.SkipWithError((vpl ? path : vpl).error().message.c_str());
-                return;
-            }
-            vpl_seconds += vpl.value().stats.seconds;
-            path_seconds += path.value().stats.seconds;
-            vpls = vpl.value().stats.vpls;
-            cut = vpl.value().stats.vplMeanCut;
-            std::printf("[vpl cornell] 16^3 round %d: vpl %.2f s, path at 4096 samples %.2f s\n",
-                        round + 1, vpl.value().stats.seconds, path.value().stats.seconds);
+        const std::optional<bench::VersusPath> timed =
+            bench::timeAgainstPath(state, "vpl", 2, "vpl16_ratio", vpl_config, path_config, kRounds,
+                                   [&](const BakeResult& vpl) {
+                                       vpls = vpl.stats.vpls;
+                                       cut = vpl.stats.vplMeanCut;
+                                   });
+        if (!timed) {
+            return;
         }
-        const double ratio = vpl_seconds / path_seconds;
-        state.counters["vpl_s"] = vpl_seconds / kRounds;
-        state.counters["path4096_s"] = path_seconds / kRounds;
-        state.counters["time_ratio"] = ratio;
-        bench::results()["vpl16_ratio"] = ratio;
         std::printf("[vpl cornell] 16^3: vpl (default, %llu VPLs, %.1f clusters/probe) %.2f s, "
                     "path at 4096 samples %.2f s (means of %d): ratio %.4f (target <= 0.10), %u "
                     "threads\n",
-                    static_cast<unsigned long long>(vpls), cut, vpl_seconds / kRounds,
-                    path_seconds / kRounds, kRounds, ratio, bench::benchThreads());
+                    static_cast<unsigned long long>(vpls), cut, timed->seconds / kRounds,
+                    timed->pathSeconds / kRounds, kRounds, timed->ratio, bench::benchThreads());
     }
 }
 BENCHMARK(BM_VplVsPath16Cubed)->Iterations(1)->Unit(benchmark::kMillisecond)->UseRealTime();

@@ -7,29 +7,8 @@ pk=$1
 work=$2
 repo=$(cd "$(dirname "$0")/../.." && pwd)
 rm -rf "$work" && mkdir -p "$work" && cd "$work" || exit 1
-passed=0
-failed=0
-
-# expect CODE PATTERN -- COMMAND...: exit code CODE and stderr+stdout matching PATTERN.
-expect() {
-    local code=$1 pattern=$2
-    shift 3
-    local out rc
-    out=$("$@" 2>&1)
-    rc=$?
-    if [[ $rc -eq $code ]] && grep -qE -- "$pattern" <<<"$out"; then
-        passed=$((passed + 1))
-    else
-        failed=$((failed + 1))
-        echo "FAIL: $* -> exit $rc (want $code), output must match '$pattern':"
-        echo "$out" | head -5
-    fi
-}
-check() { # check DESCRIPTION COMMAND...: the command must succeed.
-    local what=$1
-    shift
-    if "$@"; then passed=$((passed + 1)); else failed=$((failed + 1)); echo "FAIL: $what"; fi
-}
+# shellcheck source=expect.sh
+source "$repo/tests/cli/expect.sh" || exit 1
 
 expect 2 "Usage|subcommand" -- "$pk"
 expect 0 "bake" -- "$pk" --help

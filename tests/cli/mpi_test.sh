@@ -8,19 +8,13 @@ set -u
 pk=$1
 work=$2
 mpirun=$3
+# shellcheck source=expect.sh
+source "$(cd "$(dirname "$0")" && pwd)/expect.sh" || exit 1
 rm -rf "$work" && mkdir -p "$work" && cd "$work" || exit 1
-passed=0
-failed=0
 # As root (CI containers), Open MPI refuses to start without these.
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 # Local ranks over shared memory; more ranks than cores are allowed.
 mpi=("$mpirun" --oversubscribe --mca btl self,vader)
-
-check() { # check DESCRIPTION COMMAND...
-    local what=$1
-    shift
-    if "$@"; then passed=$((passed + 1)); else failed=$((failed + 1)); echo "FAIL: $what"; fi
-}
 
 "$pk" scene cornell -o cornell.gltf >/dev/null || exit 1
 "$pk" scene thin-wall -o thin.gltf >/dev/null || exit 1

@@ -103,23 +103,12 @@ std::string failureOutputPath(const std::string& file_name) {
 }
 
 Volume makeTestVolume(const VolumeSpec& spec, const ProbeFunction& field, size_t invalid_every) {
-    VolumeDesc desc;
-    desc.name = spec.name;
-    desc.grid = grid::GridLayout(spec.bounds, spec.resolution, spec.mode, spec.frame);
-    desc.shOrder = spec.order;
-    desc.storage = spec.storage;
-    desc.blendPriority = spec.priority;
-    desc.fadeDistance = spec.fade;
-    std::vector<sh::ShRgb> probes(desc.grid.probeCount());
+    const VolumeDesc desc = densetest::volumeDesc(spec);
+    const std::vector<sh::ShRgb> probes =
+        densetest::fieldProbes(desc, [&](glm::uvec3, glm::vec3 world) { return field(world); });
     std::vector<uint8_t> validity(probes.size(), kProbeValid);
-    for (size_t i = 0; i < probes.size(); ++i) {
-        probes[i] = field(desc.grid.probeWorld(desc.grid.probeCoords(i)));
-        if (spec.order == sh::Order::L1) {
-            probes[i] = sh::truncateToL1(probes[i]);
-        }
-        if (invalid_every > 0 && i % invalid_every == 0) {
-            validity[i] = kProbeInvalid;
-        }
+    for (size_t i = 0; invalid_every > 0 && i < probes.size(); i += invalid_every) {
+        validity[i] = kProbeInvalid;
     }
     Result<Volume> volume = probekit::makeVolume(desc, probes, validity);
     EXPECT_TRUE(volume.ok()) << volume.error().message;

@@ -17,6 +17,8 @@
 #include "probekit/formats/volume.hpp"
 #include "probekit/runtime/gpu_context.hpp"
 
+#include "dense_test_volume.hpp"
+
 namespace probekit::gputest {
 
 // Validation and driver messages since the last take (thread-safe).
@@ -57,17 +59,7 @@ std::string failureOutputPath(const std::string& file_name);
 
 using ProbeFunction = std::function<sh::ShRgb(glm::vec3 world)>;
 
-struct VolumeSpec {
-    grid::Aabb bounds{glm::vec3(0.0f), glm::vec3(1.0f)};
-    glm::uvec3 resolution{4u};
-    grid::PositionMode mode = grid::PositionMode::Center;
-    grid::RigidFrame frame{};
-    sh::Order order = sh::Order::L2;
-    Storage storage = Storage::Float32;
-    int32_t priority = 0;
-    float fade = 0.0f;
-    std::string name = "test";
-};
+using VolumeSpec = densetest::BasicVolumeSpec<4>;
 
 // A volume whose probe at world position x holds field(x) (truncated to L1 for L1 volumes);
 // every `invalid_every`-th probe is marked invalid when > 0.

@@ -31,27 +31,22 @@ endif()
 run("build examples/app" ${CMAKE_COMMAND} --build ${WORK_DIR}/build)
 
 run("probekit synth" ${PROBEKIT} synth -o ${WORK_DIR}/example.pvol --format half)
-execute_process(COMMAND ${WORK_DIR}/build/probekit_example_app ${WORK_DIR}/example.pvol
-                        ${WORK_DIR}/frame.pfm
-                RESULT_VARIABLE result OUTPUT_VARIABLE out ERROR_VARIABLE err)
-message(STATUS "${out}${err}")
-if(result EQUAL 77)
-    message(STATUS "SKIPPED: no Vulkan device")
-elseif(NOT result EQUAL 0)
-    message(FATAL_ERROR "examples/app failed (${result})")
-elseif(NOT EXISTS ${WORK_DIR}/frame.pfm)
-    message(FATAL_ERROR "examples/app wrote no image")
-endif()
+# run_example(PROGRAM IMAGE WHAT): runs the built example PROGRAM on the synthetic volume; it must
+# write IMAGE (under WORK_DIR) or exit 77 (no Vulkan device). WHAT names it in the failures.
+function(run_example program image what)
+    execute_process(COMMAND ${WORK_DIR}/build/${program} ${WORK_DIR}/example.pvol
+                            ${WORK_DIR}/${image}
+                    RESULT_VARIABLE result OUTPUT_VARIABLE out ERROR_VARIABLE err)
+    message(STATUS "${out}${err}")
+    if(result EQUAL 77)
+        message(STATUS "SKIPPED: no Vulkan device")
+    elseif(NOT result EQUAL 0)
+        message(FATAL_ERROR "${what} failed (${result})")
+    elseif(NOT EXISTS ${WORK_DIR}/${image})
+        message(FATAL_ERROR "${what} wrote no image")
+    endif()
+endfunction()
 
+run_example(probekit_example_app frame.pfm "examples/app")
 # The dynamic GI example, on the same volume.
-execute_process(COMMAND ${WORK_DIR}/build/probekit_example_dynamic_gi ${WORK_DIR}/example.pvol
-                        ${WORK_DIR}/dynamic_gi.pfm
-                RESULT_VARIABLE result OUTPUT_VARIABLE out ERROR_VARIABLE err)
-message(STATUS "${out}${err}")
-if(result EQUAL 77)
-    message(STATUS "SKIPPED: no Vulkan device")
-elseif(NOT result EQUAL 0)
-    message(FATAL_ERROR "examples/app dynamic_gi failed (${result})")
-elseif(NOT EXISTS ${WORK_DIR}/dynamic_gi.pfm)
-    message(FATAL_ERROR "examples/app dynamic_gi wrote no image")
-endif()
+run_example(probekit_example_dynamic_gi dynamic_gi.pfm "examples/app dynamic_gi")

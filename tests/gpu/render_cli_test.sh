@@ -6,29 +6,9 @@
 set -u
 pk=$1
 work=$2
+# shellcheck source=../cli/expect.sh
+source "$(cd "$(dirname "$0")/../cli" && pwd)/expect.sh" || exit 1
 rm -rf "$work" && mkdir -p "$work" && cd "$work" || exit 1
-passed=0
-failed=0
-
-expect() { # expect CODE PATTERN -- COMMAND...
-    local code=$1 pattern=$2
-    shift 3
-    local out rc
-    out=$("$@" 2>&1)
-    rc=$?
-    if [[ $rc -eq $code ]] && grep -qE -- "$pattern" <<<"$out"; then
-        passed=$((passed + 1))
-    else
-        failed=$((failed + 1))
-        echo "FAIL: $* -> exit $rc (want $code), output must match '$pattern':"
-        echo "$out" | head -5
-    fi
-}
-check() { # check DESCRIPTION COMMAND...
-    local what=$1
-    shift
-    if "$@"; then passed=$((passed + 1)); else failed=$((failed + 1)); echo "FAIL: $what"; fi
-}
 
 "$pk" scene cornell -o cornell.gltf >/dev/null || exit 1
 "$pk" synth -o volume.pvol --resolution 4,4,4 --format half >/dev/null || exit 1

@@ -125,9 +125,15 @@ std::vector<GiGeometryCell> toCells(const std::vector<int32_t>& ints) {
     return cells;
 }
 
-// A DynamicGi over the room, camera in the room's middle.
-DynamicGi makeRoomGi(runtime::GpuContext& context, const DynamicGiSettings& settings,
-                     const Mesh& mesh) {
+// roomScene(), built once: it outlives every DynamicGi that holds it.
+const Mesh& roomMesh() {
+    static const Mesh mesh = roomScene();
+    return mesh;
+}
+
+// A DynamicGi over the room (roomMesh()), camera in the room's middle.
+DynamicGi makeRoomGi(runtime::GpuContext& context, const DynamicGiSettings& settings) {
+    const Mesh& mesh = roomMesh();
     Result<DynamicGi> gi = DynamicGi::create(context, settings);
     EXPECT_TRUE(gi) << (gi ? "" : gi.error().message);
     DynamicGi out = std::move(gi.value());
@@ -142,8 +148,8 @@ DynamicGi makeRoomGi(runtime::GpuContext& context, const DynamicGiSettings& sett
 class DynamicGiTest : public gputest::GpuTest {};
 
 TEST_F(DynamicGiTest, GeometryVolumeMatchesTwin) {
-    const Mesh mesh = roomScene();
-    DynamicGi gi = makeRoomGi(context(), roomSettings(), mesh);
+    const Mesh& mesh = roomMesh();
+    DynamicGi gi = makeRoomGi(context(), roomSettings());
     Result<runtime::GiUpdateStats> stats = gi.update(0);
     ASSERT_TRUE(stats) << stats.error().message;
     EXPECT_TRUE(stats.value().geometryRebuilt);
@@ -174,12 +180,11 @@ TEST_F(DynamicGiTest, GeometryVolumeMatchesTwin) {
 }
 
 TEST_F(DynamicGiTest, RadianceMatchesTwinOnItsOwnGeometry) {
-    const Mesh mesh = roomScene();
     DynamicGiSettings settings = roomSettings();
     settings.cascades = 2; // the second (0.25 m cells) holds the room in 8^3 of its cells
     settings.bounces = 2;
     settings.iterations = 8;
-    DynamicGi gi = makeRoomGi(context(), settings, mesh);
+    DynamicGi gi = makeRoomGi(context(), settings);
     Result<runtime::GiUpdateStats> stats = gi.update(0);
     ASSERT_TRUE(stats) << stats.error().message;
     // Per cascade: the geometry volume and its keep factors, then per bounce surfaces, inject,
@@ -225,8 +230,7 @@ TEST_F(DynamicGiTest, Resolution64UpdatesCleanly) {
     settings.resolution = 64;
     settings.cellSize = 0.0625f;
     settings.iterations = 2;
-    const Mesh mesh = roomScene();
-    DynamicGi gi = makeRoomGi(context(), settings, mesh);
+    DynamicGi gi = makeRoomGi(context(), settings);
     Result<runtime::GiUpdateStats> stats = gi.update(0);
     ASSERT_TRUE(stats) << stats.error().message;
     EXPECT_EQ(stats.value().cascadesUpdated, 1u);
@@ -252,8 +256,7 @@ TEST_F(DynamicGiTest, DirtyTrackingRecordsNothingWithoutChange) {
     DynamicGiSettings settings = roomSettings();
     settings.cascades = 2;
     settings.iterations = 2;
-    const Mesh mesh = roomScene();
-    DynamicGi gi = makeRoomGi(context(), settings, mesh);
+    DynamicGi gi = makeRoomGi(context(), settings);
     auto step = [&](uint64_t frame) {
         Result<runtime::GiUpdateStats> r = gi.update(frame);
         EXPECT_TRUE(r) << (r ? "" : r.error().message);
@@ -322,8 +325,7 @@ TEST_F(DynamicGiTest, UpdateIntervalDefersDirtyUpdates) {
     DynamicGiSettings settings = roomSettings();
     settings.iterations = 2;
     settings.updateInterval = 4;
-    const Mesh mesh = roomScene();
-    DynamicGi gi = makeRoomGi(context(), settings, mesh);
+    DynamicGi gi = makeRoomGi(context(), settings);
     Result<runtime::GiUpdateStats> s = gi.update(10);
     ASSERT_TRUE(s);
     EXPECT_GT(s.value().dispatches, 0u); // the first update is always due
@@ -384,8 +386,7 @@ TEST_F(DynamicGiTest, TimingsAreFilledAfterAnUpdate) {
     DynamicGiSettings settings = roomSettings(); // one 32^3 cascade
     settings.iterations = 16;
     settings.bounces = 1;
-    const Mesh mesh = roomScene();
-    DynamicGi gi = makeRoomGi(context(), settings, mesh);
+    DynamicGi gi = makeRoomGi(context(), settings);
     runtime::GiTimings t = gi.timings();
     EXPECT_TRUE(std::isnan(t.occupancyMs) && std::isnan(t.injectMs) && std::isnan(t.propagateMs) &&
                 std::isnan(t.resolveMs));

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <initializer_list>
 #include <random>
 #include <string>
 #include <vector>
@@ -190,6 +191,21 @@ struct Comparison {
 // Samples the set on the GPU and the CPU and checks every point. The tolerance is
 // relative * scale, plus, for hardware with coarse filtering weights, the weight error times
 // the irradiance change across a probe cell around the point.
+// The positions and the normals of `samples`, as GpuPointSampler::irradiance takes them.
+struct SamplePoints {
+    std::vector<glm::vec3> positions;
+    std::vector<glm::vec3> normals;
+};
+
+SamplePoints splitSamples(const std::vector<Sample>& samples) {
+    SamplePoints points;
+    for (const Sample& s : samples) {
+        points.positions.push_back(s.position);
+        points.normals.push_back(s.normal);
+    }
+    return points;
+}
+
 Comparison compareWithCpu(runtime::GpuContext& context, GpuVolumeSet& gpu, const VolumeSet& cpu,
                           const std::vector<Sample>& samples, float relative, float normal_offset,
                           const std::string& name) {
@@ -199,13 +215,9 @@ Comparison compareWithCpu(runtime::GpuContext& context, GpuVolumeSet& gpu, const
     if (!sampler.ok()) {
         return out;
     }
-    std::vector<glm::vec3> positions;
-    std::vector<glm::vec3> normals;
-    for (const Sample& s : samples) {
-        positions.push_back(s.position);
-        normals.push_back(s.normal);
-    }
-    Result<std::vector<glm::vec3>> gpu_e = sampler.value().irradiance(gpu, positions, normals);
+    const SamplePoints points = splitSamples(samples);
+    Result<std::vector<glm::vec3>> gpu_e =
+        sampler.value().irradiance(gpu, points.positions, points.normals);
     EXPECT_TRUE(gpu_e.ok()) << gpu_e.error().message;
     if (!gpu_e.ok()) {
         return out;
@@ -266,6 +278,39 @@ Comparison compareWithCpu(runtime::GpuContext& context, GpuVolumeSet& gpu, const
     std::printf("[ figures  ] %s: %zu points, max |GPU - CPU| / scale = %.3g (tolerance %.0e)\n",
                 name.c_str(), samples.size(), double(out.maxRelative), double(relative));
     return out;
+}
+
+// For each factor t of `blends`: blends volume 0 of `gpu` between its two states by t and checks
+// the GPU irradiance at `samples` against the lerp of the CPU irradiance of `cpu_a` (the sets as
+// with the first state) and `cpu_b` (with the second): the blending weights do not depend on the
+// state, so the blend of the set is the lerp of the two sets' irradiance. The error is relative
+// to the expected value, or to 5% of |a + b| where that is larger; `what` names the figures.
+void expectStateBlendIsLerp(runtime::GpuContext& context, GpuVolumeSet& gpu, const VolumeSet& cpu_a,
+                            const VolumeSet& cpu_b, const std::vector<Sample>& samples,
+                            std::initializer_list<float> blends, float tolerance,
+                            const std::string& what) {
+    Result<GpuPointSampler> sampler = GpuPointSampler::create(context);
+    ASSERT_TRUE(sampler.ok());
+    const SamplePoints points = splitSamples(samples);
+    for (float t : blends) {
+        ASSERT_TRUE(gpu.setStateBlend(0, t).ok());
+        Result<std::vector<glm::vec3>> e =
+            sampler.value().irradiance(gpu, points.positions, points.normals);
+        ASSERT_TRUE(e.ok()) << e.error().message;
+        float worst = 0.0f;
+        for (size_t i = 0; i < samples.size(); ++i) {
+            const glm::vec3 a = cpu_a.irradiance(points.positions[i], points.normals[i]);
+            const glm::vec3 b = cpu_b.irradiance(points.positions[i], points.normals[i]);
+            const glm::vec3 expected = (1.0f - t) * a + t * b;
+            const float scale = std::max({std::abs(expected.x), std::abs(expected.y),
+                                          std::abs(expected.z), 0.05f * glm::length(a + b)});
+            const glm::vec3 d = glm::abs(e.value()[i] - expected);
+            worst = std::max(worst, std::max(d.x, std::max(d.y, d.z)) / scale);
+        }
+        std::printf("[ figures  ] %s t=%.2f: max |GPU - lerp(CPU a, CPU b)| / scale = %.3g\n",
+                    what.c_str(), double(t), double(worst));
+        EXPECT_LE(worst, tolerance) << "blend factor " << t;
+    }
 }
 
 grid::RigidFrame rotated(float angle_deg, glm::vec3 axis, glm::vec3 translation) {
@@ -351,6 +396,15 @@ float relativeFor(const std::vector<Volume>& volumes) {
         return v.desc.storage == Storage::Float16;
     });
     return any_half ? kHalfRelative : kFloatRelative;
+}
+
+// compareWithCpu over the set of `volumes` at relativeFor's tolerance, no normal offset: the
+// largest |GPU - CPU| / scale it found.
+float caseError(runtime::GpuContext& context, GpuVolumeSet& gpu, const std::vector<Volume>& volumes,
+                const std::vector<Sample>& samples, const std::string& name) {
+    return compareWithCpu(context, gpu, VolumeSet(volumes), samples, relativeFor(volumes), 0.0f,
+                          name)
+        .maxRelative;
 }
 
 class GpuSampler : public GpuTest {};
@@ -533,37 +587,10 @@ TEST_F(GpuSampler, SecondStateBlendOnTheGpu) {
         const VolumeSet cpu_a(initial);
         const VolumeSet cpu_b(std::vector<Volume>{state_b, neighbour});
         const std::vector<Sample> samples = samplePoints(initial, 6000, 3);
-        Result<GpuPointSampler> sampler = GpuPointSampler::create(context());
-        ASSERT_TRUE(sampler.ok());
-        std::vector<glm::vec3> positions;
-        std::vector<glm::vec3> normals;
-        for (const Sample& s : samples) {
-            positions.push_back(s.position);
-            normals.push_back(s.normal);
-        }
-        for (float t : {0.0f, 0.5f, 1.0f, 0.25f}) {
-            ASSERT_TRUE(gpu.value().setStateBlend(0, t).ok());
-            Result<std::vector<glm::vec3>> e =
-                sampler.value().irradiance(gpu.value(), positions, normals);
-            ASSERT_TRUE(e.ok()) << e.error().message;
-            float worst = 0.0f;
-            for (size_t i = 0; i < samples.size(); ++i) {
-                // Blending weights do not depend on the state, so the blend of the set is the
-                // lerp of the two sets' irradiance.
-                const glm::vec3 a = cpu_a.irradiance(positions[i], normals[i]);
-                const glm::vec3 b = cpu_b.irradiance(positions[i], normals[i]);
-                const glm::vec3 expected = (1.0f - t) * a + t * b;
-                const float scale = std::max({std::abs(expected.x), std::abs(expected.y),
-                                              std::abs(expected.z), 0.05f * glm::length(a + b)});
-                const glm::vec3 d = glm::abs(e.value()[i] - expected);
-                worst = std::max(worst, std::max(d.x, std::max(d.y, d.z)) / scale);
-            }
-            std::printf("[ figures  ] blend %s t=%.2f: max |GPU - lerp(CPU a, CPU b)| / scale "
-                        "= %.3g\n",
-                        std::string(toString(storage)).c_str(), double(t), double(worst));
-            EXPECT_LE(worst, storage == Storage::Float16 ? kHalfRelative : kFloatRelative)
-                << "blend factor " << t;
-        }
+        ASSERT_NO_FATAL_FAILURE(expectStateBlendIsLerp(
+            context(), gpu.value(), cpu_a, cpu_b, samples, {0.0f, 0.5f, 1.0f, 0.25f},
+            storage == Storage::Float16 ? kHalfRelative : kFloatRelative,
+            "blend " + std::string(toString(storage))));
         EXPECT_EQ(gpu.value().uploadedBytes(), uploaded) << "changing the blend re-uploaded";
     }
 }
@@ -790,9 +817,7 @@ TEST_F(GpuSampler, BrickedMatchesCpuSampler) {
                 brickBorderPoints(c.volumes, kPointsPerCase / 2, 43);
             samples.insert(samples.end(), borders.begin(), borders.end());
         }
-        const Comparison result = compareWithCpu(context(), gpu.value(), VolumeSet(c.volumes),
-                                                 samples, relativeFor(c.volumes), 0.0f, c.name);
-        worst = std::max(worst, result.maxRelative);
+        worst = std::max(worst, caseError(context(), gpu.value(), c.volumes, samples, c.name));
     }
     std::printf("[ figures  ] bricked: worst max |GPU - CPU| / scale over all cases = %.3g\n",
                 double(worst));
@@ -1028,9 +1053,7 @@ TEST_F(GpuSampler, VisibilityMatchesCpuSampler) {
         // 12.8% and more for the others).
         EXPECT_GT(effect.changedShare, 0.03) << c.name;
         EXPECT_GT(effect.maxChange, 0.3f) << c.name;
-        const Comparison result = compareWithCpu(context(), gpu.value(), VolumeSet(c.volumes),
-                                                 samples, relativeFor(c.volumes), 0.0f, c.name);
-        worst = std::max(worst, result.maxRelative);
+        worst = std::max(worst, caseError(context(), gpu.value(), c.volumes, samples, c.name));
     }
     std::printf("[ figures  ] visibility: worst max |GPU - CPU| / scale over all cases = %.3g\n",
                 double(worst));
@@ -1071,37 +1094,10 @@ TEST_F(GpuSampler, VisibilitySecondStateBlend) {
             std::vector<Sample> samples = samplePoints(initial, 4000, 61);
             const std::vector<Sample> near = nearHiddenProbes(initial, 2000, 62);
             samples.insert(samples.end(), near.begin(), near.end());
-            Result<GpuPointSampler> sampler = GpuPointSampler::create(context());
-            ASSERT_TRUE(sampler.ok());
-            std::vector<glm::vec3> positions;
-            std::vector<glm::vec3> normals;
-            for (const Sample& s : samples) {
-                positions.push_back(s.position);
-                normals.push_back(s.normal);
-            }
-            for (float t : {0.0f, 0.3f, 1.0f}) {
-                ASSERT_TRUE(gpu.value().setStateBlend(0, t).ok());
-                Result<std::vector<glm::vec3>> e =
-                    sampler.value().irradiance(gpu.value(), positions, normals);
-                ASSERT_TRUE(e.ok()) << e.error().message;
-                float worst = 0.0f;
-                for (size_t i = 0; i < samples.size(); ++i) {
-                    // The weights are the same for both states, so the blend is the lerp.
-                    const glm::vec3 a = cpu_a.irradiance(positions[i], normals[i]);
-                    const glm::vec3 b = cpu_b.irradiance(positions[i], normals[i]);
-                    const glm::vec3 expected = (1.0f - t) * a + t * b;
-                    const float scale =
-                        std::max({std::abs(expected.x), std::abs(expected.y), std::abs(expected.z),
-                                  0.05f * glm::length(a + b)});
-                    const glm::vec3 d = glm::abs(e.value()[i] - expected);
-                    worst = std::max(worst, std::max(d.x, std::max(d.y, d.z)) / scale);
-                }
-                std::printf("[ figures  ] visibility blend %s t=%.2f: max |GPU - lerp(CPU a, "
-                            "CPU b)| / scale = %.3g\n",
-                            name.c_str(), double(t), double(worst));
-                EXPECT_LE(worst, storage == Storage::Float16 ? kHalfRelative : kFloatRelative)
-                    << "blend factor " << t;
-            }
+            ASSERT_NO_FATAL_FAILURE(expectStateBlendIsLerp(
+                context(), gpu.value(), cpu_a, cpu_b, samples, {0.0f, 0.3f, 1.0f},
+                storage == Storage::Float16 ? kHalfRelative : kFloatRelative,
+                "visibility blend " + name));
         }
     }
 }

@@ -143,6 +143,15 @@ protected:
         planeMesh(vertices, indices);
         return renderer().setMeshes(vertices, indices).ok();
     }
+    // The GPU set of `volumes`, the renderer holding no meshes (frames show the probes alone);
+    // the error of the step that failed.
+    Result<GpuVolumeSet> probesOnly(const std::vector<Volume>& volumes) {
+        Result<void> meshes = renderer().setMeshes({}, {});
+        if (!meshes.ok()) {
+            return meshes.error();
+        }
+        return GpuVolumeSet::create(context(), volumes);
+    }
     void TearDown() override {
         m_renderer.reset();
         GpuTest::TearDown();
@@ -170,10 +179,7 @@ TEST_F(Renderer, UniformlyLitPlaneIsAlbedoTimesRadiance) {
     })};
     Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
     ASSERT_TRUE(gpu.ok()) << gpu.error().message;
-    std::vector<RenderVertex> vertices;
-    std::vector<uint32_t> indices;
-    planeMesh(vertices, indices);
-    ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+    ASSERT_TRUE(drawPlane());
     Result<Frame> frame = renderer().render(gpu.value(), planeView(96, 64));
     ASSERT_TRUE(frame.ok()) << frame.error().message;
     // kY00 is 1 / (2 sqrt(pi)) to 6 decimals: E = pi L within ~1e-6.
@@ -188,10 +194,7 @@ TEST_F(Renderer, FlatPlaneIsAlbedoOverPiTimesE) {
     Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
     ASSERT_TRUE(gpu.ok()) << gpu.error().message;
     const VolumeSet cpu(volumes);
-    std::vector<RenderVertex> vertices;
-    std::vector<uint32_t> indices;
-    planeMesh(vertices, indices);
-    ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+    ASSERT_TRUE(drawPlane());
 
     FrameSettings settings = planeView(96, 64);
     Result<Frame> shaded = renderer().render(gpu.value(), settings);
@@ -474,9 +477,8 @@ TEST_F(Renderer, ProbeSpheresShowTheirOwnShAndValidity) {
     const Volume volume =
         makeTestVolume(spec, skyAndLight({0.3f, 0.4f, 0.6f}, {0.3f, 1.6f, -0.4f}, 3.0f), 5);
     const std::vector<Volume> volumes{volume};
-    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
+    Result<GpuVolumeSet> gpu = probesOnly(volumes);
     ASSERT_TRUE(gpu.ok()) << gpu.error().message;
-    ASSERT_TRUE(renderer().setMeshes({}, {}).ok());
 
     FrameSettings settings;
     settings.width = 200;
@@ -535,9 +537,8 @@ TEST_F(Renderer, BrickedProbeSpheresShowTheirLevelAndOwnSh) {
     desc.bricks = bricktest::mixedLayout(glm::uvec3(2, 1, 2));
     const Volume volume = bricktest::makeBrickedVolume(
         desc, skyAndLight({0.3f, 0.4f, 0.6f}, {0.3f, 1.6f, -0.4f}, 3.0f), true);
-    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), std::vector<Volume>{volume});
+    Result<GpuVolumeSet> gpu = probesOnly(std::vector<Volume>{volume});
     ASSERT_TRUE(gpu.ok()) << gpu.error().message;
-    ASSERT_TRUE(renderer().setMeshes({}, {}).ok());
 
     FrameSettings settings;
     // Large enough that the probes view's budget (probeBudget: one probe per 64 pixels, 3,600
@@ -600,10 +601,7 @@ TEST_F(Renderer, DynamicUpdatesShowInTheNextFrameOnly) {
                                         skyAndLight({0.6f, 0.2f, 0.1f}, {-0.5f, 1.2f, 0.4f}, 2.0f));
     Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
     ASSERT_TRUE(gpu.ok());
-    std::vector<RenderVertex> vertices;
-    std::vector<uint32_t> indices;
-    planeMesh(vertices, indices);
-    ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+    ASSERT_TRUE(drawPlane());
     FrameSettings settings = planeView(64, 48);
     settings.view = RenderView::Irradiance;
 
@@ -639,10 +637,7 @@ TEST_F(Renderer, LeakViewIsTheVisibleShare) {
     // difference on a 1/32-cell ramp keep GPU and CPU within 1e-3 absolute (the float
     // tolerance of the sampler tests at scale 1).
     constexpr float kShareAbsolute = 1e-3f;
-    std::vector<RenderVertex> vertices;
-    std::vector<uint32_t> indices;
-    planeMesh(vertices, indices);
-    ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+    ASSERT_TRUE(drawPlane());
     FrameSettings settings = planeView(96, 64);
     settings.view = RenderView::Leak;
     const ProbeFunction field = skyAndLight({0.3f, 0.4f, 0.6f}, {0.3f, 1.5f, -0.4f}, 4.0f);
@@ -708,10 +703,7 @@ TEST_F(Renderer, IrradianceWithVisibilityMatchesTheCpuSampler) {
     // Sets with visibility are shaded by the renderer's visibility pipelines (every volume tap
     // by tap on CPU devices): a dense volume with visibility under a bricked one with visibility
     // of higher priority and a fade, and a small dense one without (its taps weigh 1).
-    std::vector<RenderVertex> vertices;
-    std::vector<uint32_t> indices;
-    planeMesh(vertices, indices);
-    ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+    ASSERT_TRUE(drawPlane());
     Volume dense = makeTestVolume(planeVolumeSpec(),
                                   skyAndLight({0.3f, 0.4f, 0.6f}, {0.3f, 1.5f, -0.4f}, 4.0f));
     addVisibility(dense, 11);
@@ -768,10 +760,7 @@ TEST_F(Renderer, TimesEachPass) {
         planeVolumeSpec(), skyAndLight({0.3f, 0.4f, 0.6f}, {0.3f, 1.5f, -0.4f}, 4.0f))};
     Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), volumes);
     ASSERT_TRUE(gpu.ok());
-    std::vector<RenderVertex> vertices;
-    std::vector<uint32_t> indices;
-    planeMesh(vertices, indices);
-    ASSERT_TRUE(renderer().setMeshes(vertices, indices).ok());
+    ASSERT_TRUE(drawPlane());
     FrameSettings settings = planeView(64, 48);
     settings.readbackColor = false;
     settings.readbackGBuffer = false;
@@ -1145,9 +1134,8 @@ TEST_F(Renderer, ProbesViewDrawsWithinItsBudget) {
         s.rgb[0] = glm::vec3(1.0f);
         return s;
     })};
-    Result<GpuVolumeSet> gpu = GpuVolumeSet::create(context(), big);
+    Result<GpuVolumeSet> gpu = probesOnly(big);
     ASSERT_TRUE(gpu.ok()) << gpu.error().message;
-    ASSERT_TRUE(renderer().setMeshes({}, {}).ok());
     FrameSettings settings;
     settings.width = 160;
     settings.height = 120;

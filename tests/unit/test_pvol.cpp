@@ -451,6 +451,21 @@ protected:
         SCOPED_TRACE("readPvol");
         expectFailure(readPvol(path), path.string(), code, fragment);
     }
+    // Stores `value` `extra` bytes past volume 1's `field` in `sample`, reseals, and expects the
+    // rejection with `message`.
+    template <class T>
+    void expectEditRejected(SampleFile sample, size_t VolumeOffsets::*field, size_t extra, T value,
+                            ErrorCode code, const std::string& message) {
+        storeAt<T>(sample.bytes, sample.target.*field + extra, value);
+        resealPayload(sample.bytes);
+        expectRejected(sample.bytes, code, message);
+    }
+    // expectEditRejected on the dense sample, the message after targetLabel().
+    template <class T>
+    void expectFieldRejected(size_t VolumeOffsets::*field, size_t extra, T value, ErrorCode code,
+                             const std::string& fragment) {
+        expectEditRejected<T>(sampleFile(), field, extra, value, code, targetLabel() + fragment);
+    }
 };
 
 // --- round trips -------------------------------------------------------------------------------
@@ -1097,92 +1112,68 @@ TEST_F(PvolReject, ByteOrderFlag) {
 // --- rejection: per-volume fields --------------------------------------------------------------
 
 TEST_F(PvolReject, InconsistentValidityCount) {
-    SampleFile sample = sampleFile();
-    storeAt<uint64_t>(sample.bytes, sample.target.validityCount, 33);
-    resealPayload(sample.bytes);
-    expectRejected(sample.bytes, ErrorCode::InconsistentSize,
-                   targetLabel() + "validity holds 33 bytes but the 2x8x2 grid has 32 probes");
+    expectFieldRejected<uint64_t>(&VolumeOffsets::validityCount, 0, 33, ErrorCode::InconsistentSize,
+                                  "validity holds 33 bytes but the 2x8x2 grid has 32 probes");
 }
 
 TEST_F(PvolReject, InconsistentTexelCount) {
-    SampleFile sample = sampleFile();
-    storeAt<uint64_t>(sample.bytes, sample.target.texelCount, 32 * 7 * 4); // L2's count in L1
-    resealPayload(sample.bytes);
-    expectRejected(sample.bytes, ErrorCode::InconsistentSize,
-                   targetLabel() + "texel data holds 896 values, expected 384");
+    // L2's count in L1
+    expectFieldRejected<uint64_t>(&VolumeOffsets::texelCount, 0, 32 * 7 * 4,
+                                  ErrorCode::InconsistentSize,
+                                  "texel data holds 896 values, expected 384");
 }
 
 TEST_F(PvolReject, NonPowerOfTwoResolution) {
-    SampleFile sample = sampleFile();
-    storeAt<uint32_t>(sample.bytes, sample.target.resolution + 4, 12);
-    resealPayload(sample.bytes);
-    expectRejected(sample.bytes, ErrorCode::BadResolution,
-                   targetLabel() + "resolution.y = 12 is not a power of two");
+    expectFieldRejected<uint32_t>(&VolumeOffsets::resolution, 4, 12, ErrorCode::BadResolution,
+                                  "resolution.y = 12 is not a power of two");
 }
 
 TEST_F(PvolReject, ResolutionOutOfRange) {
-    SampleFile sample = sampleFile();
-    storeAt<uint32_t>(sample.bytes, sample.target.resolution + 8, 512);
-    resealPayload(sample.bytes);
-    expectRejected(sample.bytes, ErrorCode::BadResolution, targetLabel() + "resolution.z = 512");
+    expectFieldRejected<uint32_t>(&VolumeOffsets::resolution, 8, 512, ErrorCode::BadResolution,
+                                  "resolution.z = 512");
 
-    SampleFile corner = sampleFile();
-    storeAt<uint32_t>(corner.bytes, corner.target.resolution, 1); // corner placement needs >= 2
-    resealPayload(corner.bytes);
-    expectRejected(corner.bytes, ErrorCode::BadResolution, targetLabel() + "resolution.x = 1");
+    // corner placement needs >= 2
+    expectFieldRejected<uint32_t>(&VolumeOffsets::resolution, 0, 1, ErrorCode::BadResolution,
+                                  "resolution.x = 1");
 }
 
 TEST_F(PvolReject, NanBounds) {
-    SampleFile sample = sampleFile();
-    storeAt<float>(sample.bytes, sample.target.boundsMin, std::numeric_limits<float>::quiet_NaN());
-    resealPayload(sample.bytes);
-    expectRejected(sample.bytes, ErrorCode::NonFinite, targetLabel() + "bounds.x is not finite");
+    expectFieldRejected<float>(&VolumeOffsets::boundsMin, 0,
+                               std::numeric_limits<float>::quiet_NaN(), ErrorCode::NonFinite,
+                               "bounds.x is not finite");
 }
 
 TEST_F(PvolReject, InfiniteBounds) {
-    SampleFile sample = sampleFile();
-    storeAt<float>(sample.bytes, sample.target.boundsMax + 8,
-                   std::numeric_limits<float>::infinity());
-    resealPayload(sample.bytes);
-    expectRejected(sample.bytes, ErrorCode::NonFinite, targetLabel() + "bounds.z is not finite");
+    expectFieldRejected<float>(&VolumeOffsets::boundsMax, 8, std::numeric_limits<float>::infinity(),
+                               ErrorCode::NonFinite, "bounds.z is not finite");
 }
 
 TEST_F(PvolReject, InvertedBounds) {
-    SampleFile sample = sampleFile();
-    storeAt<float>(sample.bytes, sample.target.boundsMax + 4, -10.0f); // max.y below min.y
-    resealPayload(sample.bytes);
-    expectRejected(sample.bytes, ErrorCode::OutOfRange, targetLabel() + "bounds.y");
+    // max.y below min.y
+    expectFieldRejected<float>(&VolumeOffsets::boundsMax, 4, -10.0f, ErrorCode::OutOfRange,
+                               "bounds.y");
 }
 
 TEST_F(PvolReject, NonFiniteFrameAndFade) {
-    SampleFile rotation = sampleFile();
-    storeAt<float>(rotation.bytes, rotation.target.rotation + 4,
-                   std::numeric_limits<float>::quiet_NaN());
-    resealPayload(rotation.bytes);
-    expectRejected(rotation.bytes, ErrorCode::NonFinite, targetLabel() + "frame.rotation");
+    expectFieldRejected<float>(&VolumeOffsets::rotation, 4, std::numeric_limits<float>::quiet_NaN(),
+                               ErrorCode::NonFinite, "frame.rotation");
 
-    SampleFile translation = sampleFile();
-    storeAt<float>(translation.bytes, translation.target.translation + 4,
-                   -std::numeric_limits<float>::infinity());
-    resealPayload(translation.bytes);
-    expectRejected(translation.bytes, ErrorCode::NonFinite, targetLabel() + "frame.translation.y");
+    expectFieldRejected<float>(&VolumeOffsets::translation, 4,
+                               -std::numeric_limits<float>::infinity(), ErrorCode::NonFinite,
+                               "frame.translation.y");
 
-    SampleFile fade = sampleFile();
-    storeAt<float>(fade.bytes, fade.target.fadeDistance, std::numeric_limits<float>::infinity());
-    resealPayload(fade.bytes);
-    expectRejected(fade.bytes, ErrorCode::NonFinite, targetLabel() + "fade_distance");
+    expectFieldRejected<float>(&VolumeOffsets::fadeDistance, 0,
+                               std::numeric_limits<float>::infinity(), ErrorCode::NonFinite,
+                               "fade_distance");
 }
 
 TEST_F(PvolReject, OutOfRangeFields) {
-    SampleFile rotation = sampleFile();
-    storeAt<float>(rotation.bytes, rotation.target.rotation, 2.0f); // |q| no longer 1
-    resealPayload(rotation.bytes);
-    expectRejected(rotation.bytes, ErrorCode::OutOfRange, targetLabel() + "frame.rotation");
+    // |q| no longer 1
+    expectFieldRejected<float>(&VolumeOffsets::rotation, 0, 2.0f, ErrorCode::OutOfRange,
+                               "frame.rotation");
 
-    SampleFile fade = sampleFile();
-    storeAt<float>(fade.bytes, fade.target.fadeDistance, -1.0f);
-    resealPayload(fade.bytes);
-    expectRejected(fade.bytes, ErrorCode::OutOfRange, targetLabel() + "fade_distance");
+    expectFieldRejected<float>(&VolumeOffsets::fadeDistance, 0, -1.0f, ErrorCode::OutOfRange,
+                               "fade_distance");
 
     SampleFile validity = sampleFile();
     validity.bytes[validity.target.validity + 4] = 2;
@@ -1207,10 +1198,8 @@ protected:
     template <class T>
     void expectFieldRejected(size_t VolumeOffsets::*field, size_t extra, T value, ErrorCode code,
                              const std::string& fragment) {
-        SampleFile sample = brickedSampleFile();
-        storeAt<T>(sample.bytes, sample.target.*field + extra, value);
-        resealPayload(sample.bytes);
-        expectRejected(sample.bytes, code, brickedLabel() + fragment);
+        expectEditRejected<T>(brickedSampleFile(), field, extra, value, code,
+                              brickedLabel() + fragment);
     }
 };
 
@@ -1408,15 +1397,11 @@ TEST_F(PvolReject, ChecksumGuardsTheVisibility) {
 // --- rejection: absurd counts (checked before anything is allocated) --------------------------
 
 TEST_F(PvolReject, AbsurdProbeCount) {
-    SampleFile sample = sampleFile();
-    storeAt<uint64_t>(sample.bytes, sample.target.validityCount, uint64_t(1) << 62);
-    resealPayload(sample.bytes);
-    expectRejected(sample.bytes, ErrorCode::InconsistentSize, targetLabel() + "validity holds");
+    expectFieldRejected<uint64_t>(&VolumeOffsets::validityCount, 0, uint64_t(1) << 62,
+                                  ErrorCode::InconsistentSize, "validity holds");
 
-    SampleFile texels = sampleFile();
-    storeAt<uint64_t>(texels.bytes, texels.target.texelCount, uint64_t(1) << 62);
-    resealPayload(texels.bytes);
-    expectRejected(texels.bytes, ErrorCode::InconsistentSize, targetLabel() + "texel data holds");
+    expectFieldRejected<uint64_t>(&VolumeOffsets::texelCount, 0, uint64_t(1) << 62,
+                                  ErrorCode::InconsistentSize, "texel data holds");
 }
 
 TEST_F(PvolReject, HugeGridWithMatchingCountsButFewBytes) {

@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include "../gpu/bricked_test_volume.hpp"
+#include "../gpu/dense_test_volume.hpp"
 #include "probekit/formats/pvol.hpp"
 #include "probekit/runtime/sampler.hpp"
 
@@ -59,35 +60,11 @@ constexpr float kWeightTolerance = 1e-6f;
 
 using ProbeFunction = std::function<sh::ShRgb(glm::uvec3 probe, glm::vec3 world)>;
 
-struct VolumeSpec {
-    grid::Aabb bounds{glm::vec3(0.0f), glm::vec3(1.0f)};
-    glm::uvec3 resolution{2u};
-    grid::PositionMode mode = grid::PositionMode::Center;
-    grid::RigidFrame frame{};
-    sh::Order order = sh::Order::L2;
-    Storage storage = Storage::Float32;
-    int32_t priority = 0;
-    float fade = 0.0f;
-    std::string name = "test";
-};
+using VolumeSpec = densetest::BasicVolumeSpec<2>;
 
 Volume makeTestVolume(const VolumeSpec& spec, const ProbeFunction& probe_sh) {
-    VolumeDesc desc;
-    desc.name = spec.name;
-    desc.grid = grid::GridLayout(spec.bounds, spec.resolution, spec.mode, spec.frame);
-    desc.shOrder = spec.order;
-    desc.storage = spec.storage;
-    desc.blendPriority = spec.priority;
-    desc.fadeDistance = spec.fade;
-    std::vector<sh::ShRgb> probes(desc.grid.probeCount());
-    for (size_t i = 0; i < probes.size(); ++i) {
-        const glm::uvec3 c = desc.grid.probeCoords(i);
-        probes[i] = probe_sh(c, desc.grid.probeWorld(c));
-        if (spec.order == sh::Order::L1) {
-            probes[i] = sh::truncateToL1(probes[i]);
-        }
-    }
-    Result<Volume> v = makeVolume(desc, probes);
+    const VolumeDesc desc = densetest::volumeDesc(spec);
+    Result<Volume> v = makeVolume(desc, densetest::fieldProbes(desc, probe_sh));
     EXPECT_TRUE(v.ok()) << v.error().message;
     return std::move(v).value();
 }
@@ -165,6 +142,21 @@ VolumeSpec exactGridSpec(Storage storage) {
     return spec;
 }
 
+// A volume of `spec` whose every probe holds distinctSh of its coordinates.
+Volume distinctVolume(const VolumeSpec& spec) {
+    return makeTestVolume(spec, [](glm::uvec3 c, glm::vec3) { return distinctSh(c); });
+}
+
+// check(index, coordinates, the sampled SH at its position) for every probe of `v`.
+void forEveryProbe(const Volume& v,
+                   const std::function<void(size_t, glm::uvec3, const sh::ShRgb&)>& check) {
+    const grid::GridLayout& g = v.desc.grid;
+    for (size_t i = 0; i < v.probeCount(); ++i) {
+        const glm::uvec3 c = g.probeCoords(i);
+        check(i, c, runtime::sampleVolumeSh(v, g.probeWorld(c)));
+    }
+}
+
 glm::vec3 furnaceE(glm::vec3 radiance) {
     return sh::kPi * radiance;
 }
@@ -172,32 +164,24 @@ glm::vec3 furnaceE(glm::vec3 radiance) {
 } // namespace
 
 TEST(SamplerTrilinear, ReturnsStoredProbeExactlyAtEveryProbeFloat) {
-    const Volume v = makeTestVolume(exactGridSpec(Storage::Float32),
-                                    [](glm::uvec3 c, glm::vec3) { return distinctSh(c); });
-    const grid::GridLayout& g = v.desc.grid;
-    for (size_t i = 0; i < v.probeCount(); ++i) {
-        const glm::uvec3 c = g.probeCoords(i);
-        EXPECT_EQ(runtime::sampleVolumeSh(v, g.probeWorld(c)), distinctSh(c)) << "probe " << i;
-    }
+    forEveryProbe(distinctVolume(exactGridSpec(Storage::Float32)),
+                  [](size_t i, glm::uvec3 c, const sh::ShRgb& sampled) {
+                      EXPECT_EQ(sampled, distinctSh(c)) << "probe " << i;
+                  });
 }
 
 TEST(SamplerTrilinear, ReturnsStoredProbeWithinHalfPrecisionAtEveryProbeHalf) {
-    const Volume v = makeTestVolume(exactGridSpec(Storage::Float16),
-                                    [](glm::uvec3 c, glm::vec3) { return distinctSh(c); });
-    const grid::GridLayout& g = v.desc.grid;
-    for (size_t i = 0; i < v.probeCount(); ++i) {
-        const glm::uvec3 c = g.probeCoords(i);
-        const sh::ShRgb sampled = runtime::sampleVolumeSh(v, g.probeWorld(c));
+    const Volume v = distinctVolume(exactGridSpec(Storage::Float16));
+    forEveryProbe(v, [&](size_t i, glm::uvec3 c, const sh::ShRgb& sampled) {
         // The decoded texels themselves come back bit for bit...
         EXPECT_EQ(sampled, v.probe(i)) << "probe " << i;
         // ...and they are the baked values to half precision.
         expectShNear(sampled, distinctSh(c), kHalfRelative, "probe " + std::to_string(i));
-    }
+    });
 }
 
 TEST(SamplerTrilinear, MidwayBetweenProbesIsTheAverage) {
-    const Volume v = makeTestVolume(exactGridSpec(Storage::Float32),
-                                    [](glm::uvec3 c, glm::vec3) { return distinctSh(c); });
+    const Volume v = distinctVolume(exactGridSpec(Storage::Float32));
     const grid::GridLayout& g = v.desc.grid;
     const glm::uvec3 a(1, 0, 3);
     const glm::uvec3 b(2, 0, 3);
@@ -288,8 +272,7 @@ TEST(SamplerTrilinear, ReproducesAnAffineFieldAnywhereInside) {
 }
 
 TEST(SamplerClamp, OutsideEqualsNearestBorderValue) {
-    const Volume v = makeTestVolume(exactGridSpec(Storage::Float32),
-                                    [](glm::uvec3 c, glm::vec3) { return distinctSh(c); });
+    const Volume v = distinctVolume(exactGridSpec(Storage::Float32));
     const grid::GridLayout& g = v.desc.grid;
     const glm::uvec3 res = g.resolution();
 
@@ -315,8 +298,7 @@ TEST(SamplerGrid, ResolutionOneAxesUseTheirSingleProbe) {
     VolumeSpec spec;
     spec.bounds = {glm::vec3(0.0f), glm::vec3(1.0f, 4.0f, 1.0f)};
     spec.resolution = glm::uvec3(1, 4, 1);
-    const Volume column =
-        makeTestVolume(spec, [](glm::uvec3 c, glm::vec3) { return distinctSh(c); });
+    const Volume column = distinctVolume(spec);
     // Probes at y = 0.5, 1.5, 2.5, 3.5; x and z do not matter, even outside the box.
     for (glm::vec2 xz : {glm::vec2(0.5f, 0.5f), glm::vec2(0.0f, 1.0f), glm::vec2(-3.0f, 7.0f)}) {
         EXPECT_EQ(runtime::sampleVolumeSh(column, glm::vec3(xz.x, 2.5f, xz.y)),
@@ -328,8 +310,7 @@ TEST(SamplerGrid, ResolutionOneAxesUseTheirSingleProbe) {
     }
 
     spec.resolution = glm::uvec3(1);
-    const Volume single =
-        makeTestVolume(spec, [](glm::uvec3 c, glm::vec3) { return distinctSh(c); });
+    const Volume single = distinctVolume(spec);
     for (glm::vec3 p :
          {glm::vec3(0.5f, 2.0f, 0.5f), glm::vec3(0.0f), glm::vec3(9.0f, -9.0f, 3.0f)}) {
         EXPECT_EQ(runtime::sampleVolumeSh(single, p), distinctSh(glm::uvec3(0)));
@@ -346,7 +327,7 @@ TEST(SamplerFrame, RotatedTranslatedVolumeFindsTheRightProbes) {
     spec.resolution = glm::uvec3(2, 1, 1);
     spec.frame = grid::RigidFrame{glm::angleAxis(0.5f * sh::kPi, glm::vec3(0, 1, 0)),
                                   glm::vec3(10.0f, 0.0f, 0.0f)};
-    const Volume v = makeTestVolume(spec, [](glm::uvec3 c, glm::vec3) { return distinctSh(c); });
+    const Volume v = distinctVolume(spec);
     const sh::ShRgb p0 = distinctSh(glm::uvec3(0, 0, 0));
     const sh::ShRgb p1 = distinctSh(glm::uvec3(1, 0, 0));
     expectShNear(runtime::sampleVolumeSh(v, glm::vec3(10.5f, 0.5f, -0.5f)), p0, kFrameRelative,
@@ -416,13 +397,9 @@ TEST(SamplerIrradiance, ConstantRadianceGivesPiLForEveryNormal) {
 }
 
 TEST(VolumeSetBlend, FullyCoveringHighPriorityVolumeHidesLowerOnes) {
-    VolumeSpec high;
-    high.bounds = {glm::vec3(0.0f), glm::vec3(4.0f)};
-    high.priority = 5;
-    high.fade = 0.5f;
-    VolumeSpec low;
-    low.bounds = {glm::vec3(-10.0f), glm::vec3(10.0f)};
-    low.priority = 1;
+    const VolumeSpec high{
+        .bounds = {glm::vec3(0.0f), glm::vec3(4.0f)}, .priority = 5, .fade = 0.5f};
+    const VolumeSpec low{.bounds = {glm::vec3(-10.0f), glm::vec3(10.0f)}, .priority = 1};
     const glm::vec3 l_high(1.0f), l_low(3.0f, 2.0f, 7.0f);
     const glm::vec3 n(0.0f, 1.0f, 0.0f);
     // File order must not matter: the higher priority wins either way.
@@ -487,12 +464,9 @@ TEST(VolumeSetBlend, FadeBandWeightsAreLinear) {
 }
 
 TEST(VolumeSetBlend, NoFadeToBlackAtTheOuterBorderOfTheLastVolume) {
-    VolumeSpec inner;
-    inner.bounds = {glm::vec3(0.0f), glm::vec3(4.0f)};
-    inner.fade = 1.0f;
-    inner.priority = 1;
-    VolumeSpec elsewhere;
-    elsewhere.bounds = {glm::vec3(10.0f), glm::vec3(12.0f)};
+    const VolumeSpec inner{
+        .bounds = {glm::vec3(0.0f), glm::vec3(4.0f)}, .priority = 1, .fade = 1.0f};
+    const VolumeSpec elsewhere{.bounds = {glm::vec3(10.0f), glm::vec3(12.0f)}};
     const glm::vec3 l_inner(2.0f, 1.0f, 0.5f);
     const VolumeSet set({makeTestVolume(inner, constantField(l_inner)),
                          makeTestVolume(elsewhere, constantField(glm::vec3(9.0f)))});
