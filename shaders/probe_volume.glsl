@@ -382,14 +382,14 @@ float pk_volume_visible_weight(uint s, vec3 local) {
     if (!pk_has_visibility(s)) {
         return 1.0;
     }
-    const PkTaps taps = pk_volume_taps(s, local);
     float share = 0.0;
+    const PkTaps taps = pk_volume_taps(s, local);
+    // Per tap, the CPU's tx.weight[i] * ty.weight[j] * tz.weight[k] * vis, left to right.
     for (uint k = 0u; k < 8u; ++k) {
         uvec3 probe;
         vec3 axis;
         vec3 offset;
         pk_tap(taps, k, probe, axis, offset);
-        // The CPU's tx.weight[i] * ty.weight[j] * tz.weight[k] * vis, left to right.
         share += axis.x * axis.y * axis.z *
                  pk_probe_visibility(pk_visibility_texel(s, taps.visibility + ivec3(probe)),
                                      offset);
@@ -511,38 +511,77 @@ float pk_blend_share(uint i, vec3 p, bool covered, uint nearest, float remaining
     return w * remaining;
 }
 
-// Irradiance E (W/m^2, not divided by pi) at world position p for a receiver with unit world
-// normal n, blended over every volume of the set. Mirrors, term for term,
-// probekit::runtime::VolumeSet::irradiance(p, n, normal_offset) (runtime/src/sampler.cpp), with
-// normal_offset = params.x: the sample point moves that many metres along n, away from the
-// surface whose probes may sit behind it (self-leaking); 0 samples p itself.
+// One blending pass over the volumes, as pk_blended and pk_fetch_only make it: the sample point
+// p (moved params.x metres along the normal; the CPU's normal_offset), the coverage pass's
+// result, the CPU loop's running sums (`remaining`, the weight not yet given out, and
+// `weight_sum`, the shares given), and the current volume: its slot s, p in its local frame
+// and its share a.
+struct PkBlend {
+    vec3 p;
+    bool covered;
+    uint nearest;
+    float remaining;
+    float weight_sum;
+    uint s;
+    vec3 local;
+    float a;
+};
+
+PkBlend pk_blend_begin(vec3 world_position, vec3 normal) {
+    PkBlend blend;
+    blend.p = world_position + pk_volume_set.params.x * normal;
+    pk_coverage(blend.p, blend.covered, blend.nearest);
+    blend.remaining = 1.0;
+    blend.weight_sum = 0.0;
+    return blend;
+}
+
+// Step i of the pass: the i-th volume's share a (pk_blend_share), slot s and local sample
+// point. True, with a added to weight_sum and taken from remaining (the CPU's weight_sum += a;
+// remaining -= a), when the volume is sampled: a > 0.
+bool pk_blend_step(inout PkBlend blend, uint i) {
+    blend.a = pk_blend_share(i, blend.p, blend.covered, blend.nearest, blend.remaining, blend.s,
+                             blend.local);
+    if (blend.a > 0.0) {
+        blend.weight_sum += blend.a;
+        blend.remaining -= blend.a;
+    }
+    return blend.a > 0.0;
+}
+
+// The blend over every volume of the set of one per-volume value, sum a_v value_v / sum a_v with
+// pk_blend_step's shares: E (pk_volume_irradiance) in xyz, or, when `visible_share`, the visible
+// share (pk_volume_visible_weight) in every component. The one loop of pk_irradiance and
+// pk_visible_weight.
 //
 // The CPU loop skips volumes of weight 0 and stops once `remaining` reaches 0; here every
 // volume is visited (a loop without divergent exits keeps the slot uniform, so
 // pk_fetch_planes' switch stays a real branch) and a volume is sampled only when its share
 // a = w * remaining is positive, which selects exactly the volumes the CPU samples. Outside
-// every volume the nearest one takes weight 1, giving E of that volume alone.
-vec3 pk_irradiance(vec3 world_position, vec3 normal) {
-    const vec3 p = world_position + pk_volume_set.params.x * normal;
-    bool covered;
-    uint nearest;
-    pk_coverage(p, covered, nearest);
-    const uint count = pk_volume_set.header.x;
-    vec3 weighted_sum = vec3(0.0);
-    float weight_sum = 0.0;
-    float remaining = 1.0;
-    for (uint i = 0u; i < count; ++i) {
-        uint s;
-        vec3 local;
-        const float a = pk_blend_share(i, p, covered, nearest, remaining, s, local);
-        if (a > 0.0) {
-            weighted_sum += a * pk_volume_irradiance(s, local, normal);
-            weight_sum += a;
-            remaining -= a;
+// every volume the nearest one takes weight 1, giving the value of that volume alone.
+vec4 pk_blended(vec3 world_position, vec3 normal, bool visible_share) {
+    PkBlend blend = pk_blend_begin(world_position, normal);
+    vec4 weighted_sum = vec4(0.0);
+    for (uint i = 0u; i < pk_volume_set.header.x; ++i) {
+        if (pk_blend_step(blend, i)) {
+            const uint s = blend.s;
+            const vec3 local = blend.local;
+            weighted_sum +=
+                blend.a * (visible_share ? vec4(pk_volume_visible_weight(s, local))
+                                         : vec4(pk_volume_irradiance(s, local, normal), 0.0));
         }
     }
     // Normalising keeps the last volume's fade band from fading to black.
-    return weighted_sum / weight_sum;
+    return weighted_sum / blend.weight_sum;
+}
+
+// Irradiance E (W/m^2, not divided by pi) at world position p for a receiver with unit world
+// normal n, blended over every volume of the set (pk_blended). Mirrors, term for term,
+// probekit::runtime::VolumeSet::irradiance(p, n, normal_offset) (runtime/src/sampler.cpp), with
+// normal_offset = params.x: the sample point moves that many metres along n, away from the
+// surface whose probes may sit behind it (self-leaking); 0 samples p itself.
+vec3 pk_irradiance(vec3 world_position, vec3 normal) {
+    return pk_blended(world_position, normal, false).xyz;
 }
 
 // Irradiance from one probe's own coefficients, no interpolation: sh::irradiance of
@@ -570,22 +609,13 @@ vec3 pk_probe_irradiance(uint s, uvec3 probe, vec3 n) {
 // evaluation or weighted sums; the fetched texels are added up so none is optimised away. The
 // cost floor of pk_irradiance, for benchmarks.
 vec4 pk_fetch_only(vec3 world_position, vec3 normal) {
-    const vec3 p = world_position + pk_volume_set.params.x * normal;
-    bool covered;
-    uint nearest;
-    pk_coverage(p, covered, nearest);
-    const uint count = pk_volume_set.header.x;
+    PkBlend blend = pk_blend_begin(world_position, normal);
     vec4 sum = vec4(0.0);
-    float remaining = 1.0;
-    for (uint i = 0u; i < count; ++i) {
-        uint s;
-        vec3 local;
-        const float a = pk_blend_share(i, p, covered, nearest, remaining, s, local);
-        if (a > 0.0) {
+    for (uint i = 0u; i < pk_volume_set.header.x; ++i) {
+        if (pk_blend_step(blend, i)) {
             vec4 t[PK_MAX_PLANES];
-            pk_volume_texels(s, local, t);
+            pk_volume_texels(blend.s, blend.local, t);
             sum += t[0] + t[1] + t[2] + t[3] + t[4] + t[5] + t[6];
-            remaining -= a;
         }
     }
     return sum;
@@ -597,25 +627,7 @@ vec4 pk_fetch_only(vec3 world_position, vec3 normal) {
 // point (normal offset) and with the same nearest-volume rule outside every box. 1 where no
 // tap is hidden, near 0 where plain trilinear interpolation would pull light through a wall.
 float pk_visible_weight(vec3 world_position, vec3 normal) {
-    const vec3 p = world_position + pk_volume_set.params.x * normal;
-    bool covered;
-    uint nearest;
-    pk_coverage(p, covered, nearest);
-    const uint count = pk_volume_set.header.x;
-    float weighted_sum = 0.0;
-    float weight_sum = 0.0;
-    float remaining = 1.0;
-    for (uint i = 0u; i < count; ++i) {
-        uint s;
-        vec3 local;
-        const float a = pk_blend_share(i, p, covered, nearest, remaining, s, local);
-        if (a > 0.0) {
-            weighted_sum += a * pk_volume_visible_weight(s, local);
-            weight_sum += a;
-            remaining -= a;
-        }
-    }
-    return weighted_sum / weight_sum;
+    return pk_blended(world_position, normal, true).x;
 }
 
 #endif // PK_VOLUME_SET

@@ -1,5 +1,5 @@
 // probekit headless renderer: GPU layout of its frame uniforms and G-buffer encoding, shared by
-// C++ (runtime/src/renderer.cpp) and GLSL (gbuffer.*, probe_sphere.vert, shade.comp). As in
+// C++ (runtime/src/renderer*.cpp) and GLSL (gbuffer.*, probe_sphere.vert, shade.comp). As in
 // probe_volume_layout.h, every member is a 16-byte row so std140 adds no padding, and C++
 // static_asserts every offset.
 //

@@ -534,6 +534,18 @@ Result<Image> createZeroImage(GpuContext& context, VkFormat format) {
     return image;
 }
 
+// A write of `count` descriptors of `type` at `binding` of `set`; what they point at is set by
+// the caller.
+VkWriteDescriptorSet descriptorWrite(VkDescriptorSet set, uint32_t binding, uint32_t count,
+                                     VkDescriptorType type) {
+    VkWriteDescriptorSet write{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    write.dstSet = set;
+    write.dstBinding = binding;
+    write.descriptorCount = count;
+    write.descriptorType = type;
+    return write;
+}
+
 } // namespace
 
 Result<void> GpuVolumeSet::Impl::initDummy() {
@@ -573,30 +585,17 @@ Result<void> GpuVolumeSet::Impl::writeDescriptors() {
     }
     const VkDescriptorBufferInfo buffer{uniforms.buffer, 0, sizeof(gpu::PkVolumeSetGpu)};
     const VkDescriptorImageInfo sampler_info{sampler, VK_NULL_HANDLE, VK_IMAGE_LAYOUT_UNDEFINED};
-    std::array<VkWriteDescriptorSet, 5> writes{};
-    for (VkWriteDescriptorSet& w : writes) {
-        w.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
-        w.dstSet = set;
-    }
-    writes[0].dstBinding = PK_BINDING_VOLUMES;
-    writes[0].descriptorCount = 1;
-    writes[0].descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+    std::array<VkWriteDescriptorSet, 5> writes = {
+        descriptorWrite(set, PK_BINDING_VOLUMES, 1, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER),
+        descriptorWrite(set, PK_BINDING_STATE_A, kPlaneElements, VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE),
+        descriptorWrite(set, PK_BINDING_STATE_B, kPlaneElements, VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE),
+        descriptorWrite(set, PK_BINDING_SAMPLER, 1, VK_DESCRIPTOR_TYPE_SAMPLER),
+        descriptorWrite(set, PK_BINDING_INDIRECTION, PK_MAX_VOLUMES,
+                        VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE)};
     writes[0].pBufferInfo = &buffer;
-    writes[1].dstBinding = PK_BINDING_STATE_A;
-    writes[1].descriptorCount = kPlaneElements;
-    writes[1].descriptorType = VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE;
     writes[1].pImageInfo = images.data();
-    writes[2].dstBinding = PK_BINDING_STATE_B;
-    writes[2].descriptorCount = kPlaneElements;
-    writes[2].descriptorType = VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE;
     writes[2].pImageInfo = images.data() + kPlaneElements;
-    writes[3].dstBinding = PK_BINDING_SAMPLER;
-    writes[3].descriptorCount = 1;
-    writes[3].descriptorType = VK_DESCRIPTOR_TYPE_SAMPLER;
     writes[3].pImageInfo = &sampler_info;
-    writes[4].dstBinding = PK_BINDING_INDIRECTION;
-    writes[4].descriptorCount = PK_MAX_VOLUMES;
-    writes[4].descriptorType = VK_DESCRIPTOR_TYPE_SAMPLED_IMAGE;
     writes[4].pImageInfo = indirections.data();
     vkUpdateDescriptorSets(device(), uint32_t(writes.size()), writes.data(), 0, nullptr);
     return {};
@@ -923,16 +922,8 @@ Result<GpuVolumeSet> GpuVolumeSet::create(GpuContext& context, std::span<const V
     PK_VK_TRY(vkAllocateDescriptorSets(device, &allocate, &impl->set));
 
     // Linear filtering + clamp-to-edge + LOD 0 only: the CPU sampler's clamp and trilinear.
-    VkSamplerCreateInfo sampler{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
-    sampler.magFilter = VK_FILTER_LINEAR;
-    sampler.minFilter = VK_FILTER_LINEAR;
-    sampler.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
-    sampler.addressModeU = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
-    sampler.addressModeV = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
-    sampler.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
-    sampler.minLod = 0.0f;
-    sampler.maxLod = 0.0f;
-    PK_VK_TRY(vkCreateSampler(device, &sampler, nullptr, &impl->sampler));
+    PK_TRY(
+        detail::createLinearSampler(device, VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE, impl->sampler));
 
     Result<Buffer> uniforms = detail::createBuffer(
         context, sizeof(gpu::PkVolumeSetGpu),

@@ -184,6 +184,17 @@ Result<void> createDescriptorSetLayout(VkDevice device,
     return {};
 }
 
+Result<void> createLinearSampler(VkDevice device, VkSamplerAddressMode address_mode,
+                                 VkSampler& sampler) {
+    VkSamplerCreateInfo info{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
+    info.magFilter = info.minFilter = VK_FILTER_LINEAR;
+    info.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
+    info.addressModeU = info.addressModeV = info.addressModeW = address_mode;
+    info.minLod = info.maxLod = 0.0f;
+    PK_VK_TRY(vkCreateSampler(device, &info, nullptr, &sampler));
+    return {};
+}
+
 void imageBarrier(VkCommandBuffer cmd, VkImage image, VkImageAspectFlags aspect,
                   VkImageLayout old_layout, VkImageLayout new_layout,
                   VkPipelineStageFlags src_stage, VkAccessFlags src_access,

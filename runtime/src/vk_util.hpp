@@ -68,6 +68,11 @@ Result<void> createDescriptorSetLayout(VkDevice device,
                                        std::span<const VkDescriptorSetLayoutBinding> bindings,
                                        VkDescriptorSetLayout& layout);
 
+// A sampler with linear filtering, LOD 0 only, and `address_mode` on every axis, written to
+// `sampler`.
+Result<void> createLinearSampler(VkDevice device, VkSamplerAddressMode address_mode,
+                                 VkSampler& sampler);
+
 // One image layout transition (or same-layout dependency) of a whole single-mip image.
 void imageBarrier(VkCommandBuffer cmd, VkImage image, VkImageAspectFlags aspect,
                   VkImageLayout old_layout, VkImageLayout new_layout,
