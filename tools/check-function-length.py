@@ -276,6 +276,18 @@ def _parameter_list(stmt):
     return None
 
 
+def _before_template_args(stmt, close):
+    """The index of the token before the `<` that matches the `>` at `close`."""
+    depth = 0
+    at = close
+    while at > 0:
+        depth += {">": 1, "<": -1}.get(stmt[at][0], 0)
+        if depth == 0:
+            break
+        at -= 1
+    return at - 1
+
+
 def _qualified_name(stmt, paren, first):
     """The name as written before the parameter list, e.g. `GltfLoader::loadPrimitive`."""
     if stmt[first][0] == "operator":
@@ -283,25 +295,13 @@ def _qualified_name(stmt, paren, first):
     else:
         start = first
         if stmt[start][0] == ">":  # f<int>( : a specialisation
-            depth = 0
-            while start > 0:
-                depth += {">": 1, "<": -1}.get(stmt[start][0], 0)
-                if depth == 0:
-                    break
-                start -= 1
-            start -= 1
+            start = _before_template_args(stmt, start)
     if start > 0 and stmt[start - 1][0] == "~":
         start -= 1
     while start >= 2 and stmt[start - 1][0] == "::":
         prev = start - 2
         if stmt[prev][0] == ">":
-            depth = 0
-            while prev > 0:
-                depth += {">": 1, "<": -1}.get(stmt[prev][0], 0)
-                if depth == 0:
-                    break
-                prev -= 1
-            prev -= 1
+            prev = _before_template_args(stmt, prev)
         if prev < 0 or not _is_ident(stmt[prev][0]):
             break
         start = prev

@@ -20,20 +20,17 @@ constexpr uint64_t kPrime4 = 0x85EBCA77C2B2AE63ull;
 constexpr uint64_t kPrime5 = 0x27D4EB2F165667C5ull;
 
 // memcpy makes unaligned loads legal; the spec reads every word little-endian whatever the host.
-inline uint64_t loadLe64(const uint8_t* p) {
-    uint64_t v;
+template <class Word>
+inline Word loadLe(const uint8_t* p) {
+    static_assert(sizeof(Word) == 4 || sizeof(Word) == 8);
+    Word v;
     std::memcpy(&v, p, sizeof(v));
     if constexpr (std::endian::native == std::endian::big) {
-        v = __builtin_bswap64(v);
-    }
-    return v;
-}
-
-inline uint32_t loadLe32(const uint8_t* p) {
-    uint32_t v;
-    std::memcpy(&v, p, sizeof(v));
-    if constexpr (std::endian::native == std::endian::big) {
-        v = __builtin_bswap32(v);
+        if constexpr (sizeof(Word) == 8) {
+            v = __builtin_bswap64(v);
+        } else {
+            v = __builtin_bswap32(v);
+        }
     }
     return v;
 }
@@ -67,10 +64,10 @@ inline size_t consumeStripes(uint64_t (&acc)[4], const uint8_t* p, size_t size) 
     uint64_t acc4 = acc[3];
     const size_t stripes = size / 32;
     for (size_t i = 0; i < stripes; ++i, p += 32) {
-        acc1 = round(acc1, loadLe64(p));
-        acc2 = round(acc2, loadLe64(p + 8));
-        acc3 = round(acc3, loadLe64(p + 16));
-        acc4 = round(acc4, loadLe64(p + 24));
+        acc1 = round(acc1, loadLe<uint64_t>(p));
+        acc2 = round(acc2, loadLe<uint64_t>(p + 8));
+        acc3 = round(acc3, loadLe<uint64_t>(p + 16));
+        acc4 = round(acc4, loadLe<uint64_t>(p + 24));
     }
     acc[0] = acc1;
     acc[1] = acc2;
@@ -130,12 +127,12 @@ uint64_t XxHash64::digest() const {
     const uint8_t* p = m_pending;
     const uint8_t* const end = m_pending + m_pendingBytes;
     while (end - p >= 8) {
-        hash ^= round(0, loadLe64(p));
+        hash ^= round(0, loadLe<uint64_t>(p));
         hash = std::rotl(hash, 27) * kPrime1 + kPrime4;
         p += 8;
     }
     if (end - p >= 4) {
-        hash ^= uint64_t(loadLe32(p)) * kPrime1;
+        hash ^= uint64_t(loadLe<uint32_t>(p)) * kPrime1;
         hash = std::rotl(hash, 23) * kPrime2 + kPrime3;
         p += 4;
     }

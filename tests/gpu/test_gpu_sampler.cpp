@@ -63,16 +63,6 @@ glm::vec3 randomUnit(std::mt19937& rng) {
     }
 }
 
-grid::Aabb worldBounds(const std::vector<Volume>& volumes) {
-    grid::Aabb out{glm::vec3(INFINITY), glm::vec3(-INFINITY)};
-    for (const Volume& v : volumes) {
-        const grid::Aabb b = v.desc.grid.worldBounds();
-        out.min = glm::min(out.min, b.min);
-        out.max = glm::max(out.max, b.max);
-    }
-    return out;
-}
-
 // Positions inside, outside, exactly on box faces and inside fade bands, with random normals.
 std::vector<Sample> samplePoints(const std::vector<Volume>& volumes, size_t count, uint32_t seed) {
     std::mt19937 rng(seed);
