@@ -39,5 +39,6 @@ void addBenchRaysCommand(CLI::App& app, Command& selected);
 void addBenchCommand(CLI::App& app, Command& selected);
 void addBenchNoiseCommand(CLI::App& app, Command& selected);
 void addSurfaceCommands(CLI::App& app, Command& selected);
+void addExportCommand(CLI::App& app, Command& selected);
 
 } // namespace probekit::cli

@@ -66,6 +66,7 @@ int main(int argc, char** argv) {
     probekit::cli::addBenchCommand(app, selected);
     probekit::cli::addBenchNoiseCommand(app, selected);
     probekit::cli::addSurfaceCommands(app, selected);
+    probekit::cli::addExportCommand(app, selected);
 
     std::string command = "(command line)";
     // No exception may end the process with SIGABRT: one that escapes a command is a bug,
