@@ -25,6 +25,7 @@
 #include "probekit/baker/scene_summary.hpp"
 #include "probekit/baker/settings.hpp"
 #include "scene/coordinate_range.hpp"
+#include "scene/light_modes.hpp"
 #include "trace/parallel.hpp"
 #include "trace/ray_tracer.hpp"
 #include "volume/bricked.hpp"
@@ -965,17 +966,12 @@ BakeMetadata bakeMetadata(const BakeRun& run, const VolumePlan& plan, const Meth
 
 } // namespace
 
-Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const BakeOptions& options) {
-    const auto start = std::chrono::steady_clock::now();
-    if (Result<void> valid = validateBakeConfig(config); !valid) {
-        return valid.error();
-    }
-    if (scene.unitScale != config.scale) {
-        return makeError(ErrorCode::InvalidArgument,
-                         "scale: the config says " + std::to_string(config.scale) +
-                             " m per scene unit, but the scene was loaded with " +
-                             std::to_string(scene.unitScale) + " (LoadOptions::scale)");
-    }
+namespace {
+
+// bake() once the config is checked and the light modes applied to `scene`.
+Result<BakeResult> bakeScene(const Scene& scene, const BakeConfig& config,
+                             const BakeOptions& options,
+                             std::chrono::steady_clock::time_point start) {
     // An unlit scene bakes to zeros by construction: an error, not a file of zeros in silence.
     Result<void> lit = checkSceneLit(scene);
     if (!lit && !options.allowUnlit) {
@@ -1020,6 +1016,28 @@ Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const Bake
     finishStats(run, method, result.stats);
     result.file.metadata = bakeMetadata(run, plan.value(), method);
     return result;
+}
+
+} // namespace
+
+Result<BakeResult> bake(const Scene& scene, const BakeConfig& config, const BakeOptions& options) {
+    const auto start = std::chrono::steady_clock::now();
+    if (Result<void> valid = validateBakeConfig(config); !valid) {
+        return valid.error();
+    }
+    if (scene.unitScale != config.scale) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "scale: the config says " + std::to_string(config.scale) +
+                             " m per scene unit, but the scene was loaded with " +
+                             std::to_string(scene.unitScale) + " (LoadOptions::scale)");
+    }
+    // Light modes other than baked bake a copy of the scene with them applied (its arrays once
+    // more in memory, for as long as the bake runs).
+    Result<std::optional<Scene>> moded = applyLightModes(scene, config);
+    if (!moded) {
+        return moded.error();
+    }
+    return bakeScene(moded.value() ? *moded.value() : scene, config, options, start);
 }
 
 } // namespace probekit::baker

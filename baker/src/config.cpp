@@ -57,6 +57,18 @@ std::string_view toString(VplSampling sampling) {
     return "unknown";
 }
 
+std::string_view toString(LightMode mode) {
+    switch (mode) {
+    case LightMode::Baked:
+        return "baked";
+    case LightMode::Indirect:
+        return "indirect";
+    case LightMode::None:
+        return "none";
+    }
+    return "unknown";
+}
+
 std::string_view toString(LpvDirect direct) {
     return direct == LpvDirect::Traced ? "traced" : "propagated";
 }
@@ -75,6 +87,9 @@ constexpr std::array<VplClamp, 3> enumValues(VplClamp) {
 }
 constexpr std::array<VplSampling, 3> enumValues(VplSampling) {
     return {VplSampling::Random, VplSampling::Stratified, VplSampling::Jittered};
+}
+constexpr std::array<LightMode, 3> enumValues(LightMode) {
+    return {LightMode::Baked, LightMode::Indirect, LightMode::None};
 }
 constexpr std::array<LpvDirect, 2> enumValues(LpvDirect) {
     return {LpvDirect::Traced, LpvDirect::Propagated};
@@ -615,6 +630,20 @@ const std::vector<Field<EnvironmentConfig>>& environmentFields() {
     return fields;
 }
 
+const std::vector<Field<LightModesConfig>>& lightsFields() {
+    static const std::vector<Field<LightModesConfig>> fields = {
+        field("mode", &LightModesConfig::punctual, choiceOf<LightMode>(), "",
+              "punctual lights: baked (direct and bounced), indirect (bounced only: the engine "
+              "shades their direct light) or none",
+              "--light-mode"),
+        field("emissive", &LightModesConfig::emissive, choiceOf<LightMode>(), "",
+              "emissive surfaces: baked, indirect or none", "--emissive-mode"),
+        field("environment", &LightModesConfig::environment, choiceOf<LightMode>(), "",
+              "the environment: baked, indirect or none", "--environment-mode"),
+    };
+    return fields;
+}
+
 const std::vector<Field<BoundsConfig>>& boundsFields() {
     static const std::vector<Field<BoundsConfig>> fields = {
         field("padding", &BoundsConfig::padding, nonNegative().orAuto(), "m",
@@ -665,8 +694,9 @@ const std::vector<Field<VolumeConfig>>& volumeFields() {
 // The keys each object of the config holds besides its table's scalar fields: sections and
 // values with structure of their own, parsed by hand. With the tables, the config's whole
 // vocabulary (configVocabulary, from which tools/fuzz.sh writes the fuzz dictionary).
-constexpr std::array<const char*, 6> kTopSections = {"path",        "vpl",     "lpv",
-                                                     "environment", "volumes", "validity"};
+constexpr std::array<const char*, 7> kTopSections = {"path",    "vpl",      "lpv",   "environment",
+                                                     "volumes", "validity", "lights"};
+constexpr std::array<const char*, 1> kLightsKeys = {"per_light"};
 constexpr std::array<const char*, 3> kVolumeKeys = {"name", "bounds", "resolution"};
 constexpr std::array<const char*, 3> kEnvironmentKeys = {"type", "radiance", "file"};
 constexpr std::array<const char*, 7> kBoundsKeys = {"mode", "center", "size", "min",
@@ -910,6 +940,38 @@ Json describeEnvironment(const EnvironmentConfig& e) {
     return j;
 }
 
+// "lights": the table's fields and "per_light", an object from light name or index to mode.
+LightModesConfig parseLights(const Reader& r, const Json& j) {
+    LightModesConfig l;
+    readFields(r, j, "lights", lightsFields(), l, kLightsKeys);
+    if (j.contains("per_light")) {
+        const Json& per = j["per_light"];
+        if (!per.is_object()) {
+            r.fail("lights.per_light", "must be an object from light name or index to mode");
+        }
+        for (const auto& [key, value] : per.items()) {
+            const std::string path = "lights.per_light." + key;
+            LightMode mode = LightMode::Baked;
+            fromJson(r.check(choiceOf<LightMode>(), value, path), mode);
+            l.perLight.emplace_back(key, mode);
+        }
+    }
+    return l;
+}
+
+Json describeLights(const LightModesConfig& l) {
+    Json j = Json::object();
+    writeFields(j, lightsFields(), l);
+    if (!l.perLight.empty()) {
+        Json per = Json::object();
+        for (const auto& [key, mode] : l.perLight) {
+            per[key] = std::string(toString(mode));
+        }
+        j["per_light"] = per;
+    }
+    return j;
+}
+
 BakeConfig parseTop(const Reader& r, const Json& j, const std::filesystem::path& base_dir) {
     BakeConfig c;
     readFields(r, j, "", topFields(), c, kTopSections);
@@ -927,6 +989,9 @@ BakeConfig parseTop(const Reader& r, const Json& j, const std::filesystem::path&
     }
     if (j.contains("validity")) {
         readFields(r, j["validity"], "validity", validityFields(), c);
+    }
+    if (j.contains("lights")) {
+        c.lights = parseLights(r, j["lights"]);
     }
     if (j.contains("volumes")) {
         const Json& vols = j["volumes"];
@@ -987,6 +1052,8 @@ const std::vector<Setting>& settings() {
         addSettings<BakeConfig>(s, "validity.", validityFields(), top);
         addSettings<EnvironmentConfig>(s, "environment.", environmentFields(),
                                        [](BakeConfig& c, const auto& f) { f(c.environment); });
+        addSettings<LightModesConfig>(s, "lights.", lightsFields(),
+                                      [](BakeConfig& c, const auto& f) { f(c.lights); });
         addSettings<VolumeConfig>(s, "volumes[].", volumeFields(),
                                   [](BakeConfig& c, const auto& f) {
                                       for (VolumeConfig& v : c.volumes) {
@@ -1083,8 +1150,8 @@ std::vector<std::string> configVocabulary() {
     }
     for (const auto& keys :
          {std::span<const char* const>(kTopSections), std::span<const char* const>(kVolumeKeys),
-          std::span<const char* const>(kEnvironmentKeys),
-          std::span<const char* const>(kBoundsKeys)}) {
+          std::span<const char* const>(kEnvironmentKeys), std::span<const char* const>(kBoundsKeys),
+          std::span<const char* const>(kLightsKeys)}) {
         words.insert(keys.begin(), keys.end());
     }
     for (const std::string& name : enumNames<BoundsMode>()) {
@@ -1108,6 +1175,10 @@ Result<void> validateBakeConfig(const BakeConfig& c) {
         r.check(choiceOf<EnvironmentConfig::Type>(), std::string(toString(c.environment.type)),
                 "environment.type");
         checkEnvironment(r, c.environment, "environment");
+        checkFields(r, "lights", lightsFields(), c.lights);
+        for (const auto& [key, mode] : c.lights.perLight) {
+            r.check(choiceOf<LightMode>(), std::string(toString(mode)), "lights.per_light." + key);
+        }
         std::set<std::string> names;
         for (size_t i = 0; i < c.volumes.size(); ++i) {
             const std::string path = "volumes[" + std::to_string(i) + "]";
@@ -1162,6 +1233,7 @@ std::string describeConfig(const BakeConfig& c) {
         writeFields(j["lpv"], lpvFields(), c.lpv);
     }
     j["environment"] = describeEnvironment(c.environment);
+    j["lights"] = describeLights(c.lights);
     writeFields(j["validity"], validityFields(), c);
     j["volumes"] = Json::array();
     for (const VolumeConfig& v : c.volumes) {

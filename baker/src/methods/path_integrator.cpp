@@ -55,9 +55,11 @@ ProbeSample PathIntegrator::bakeProbe(glm::vec3 position, uint64_t seed, uint32_
     // Delta lights at the probe itself, projected exactly.
     sh::ShRgb deltas{};
     uint64_t delta_rays = 0;
-    for (const PunctualLight& light : m_scene.lights) {
+    for (size_t li = 0; li < m_scene.lights.size(); ++li) {
+        const PunctualLight& light = m_scene.lights[li];
         const std::optional<LightDirection> to_light = directionToLight(light, position);
-        if (!to_light) {
+        // A light in mode indirect (Scene::lightDirectStored) reaches the probe only bounced.
+        if (!to_light || !m_scene.directStored(li)) {
             continue;
         }
         const glm::vec3 irradiance = normalIrradianceAt(light, position);
@@ -208,7 +210,7 @@ glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, floa
     std::optional<Hit> hit = m_tracer.intersect(origin, dir);
     ++stats.rays;
     if (!hit) {
-        if (m_environmentBlack) {
+        if (m_environmentBlack || !m_scene.environmentDirectStored) {
             return glm::vec3(0.0f);
         }
         // The probe also samples the environment directly (probeDirectLight), as a surface
@@ -230,7 +232,8 @@ glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, floa
     for (uint32_t vertex = 0;;) {
         const glm::vec3 position = m_tracer.surfacePoint(hit->triangle, hit->bary);
         const Material& material = m_scene.materials[m_scene.triangleMaterial[hit->triangle]];
-        if (material.isEmissive()) {
+        // The first vertex's emission is direct light at the probe: left out in mode indirect.
+        if (material.isEmissive() && (vertex > 0 || m_scene.emissiveDirectStored)) {
             const glm::vec3 emitted = m_scene.emissionAt(hit->triangle, hit->bary);
             // The direction that reached this emitter competes with next-event estimation of
             // the same point, from the previous vertex or from the probe itself.
@@ -346,7 +349,10 @@ void PathIntegrator::probeDirectLight(glm::vec3 position, float sample_weight, R
                                       sh::ShRgb& sh, PathStats& stats) const {
     if (const std::optional<EmitterSampleFrom> e = sampleEmitterFrom(position, rng)) {
         ++stats.rays;
-        if (!m_tracer.occluded(position, e->target - position, 1.0f)) {
+        // Emitters and environment in mode indirect: sampled all the same, so that every
+        // other random number of the bake is the one a baked bake draws.
+        if (m_scene.emissiveDirectStored &&
+            !m_tracer.occluded(position, e->target - position, 1.0f)) {
             const float w = powerHeuristic(e->pdf, kProbeDirectionPdf);
             sh::addSample(sh, m_order, e->direction, e->emitted * (w / e->pdf), sample_weight);
         }
@@ -356,7 +362,7 @@ void PathIntegrator::probeDirectLight(glm::vec3 position, float sample_weight, R
         const double u_column = rng.uniformDouble();
         const LightSampler::DirectionSample s =
             m_lights.sampleEnvironment(u_row, u_column, rng.uniform2());
-        if (s.pdf > 0.0f) {
+        if (s.pdf > 0.0f && m_scene.environmentDirectStored) {
             ++stats.rays;
             if (!m_tracer.occluded(position, s.direction, kInfinity)) {
                 const float w = powerHeuristic(s.pdf, kProbeDirectionPdf);

@@ -478,9 +478,11 @@ public:
         }
         const glm::vec3 p = m_lattice.world(u);
         sh::ShRgb value;
-        for (const PunctualLight& light : m_scene.lights) {
+        for (size_t li = 0; li < m_scene.lights.size(); ++li) {
+            const PunctualLight& light = m_scene.lights[li];
             const std::optional<LightDirection> to_light = directionToLight(light, p);
-            if (!to_light || m_tracer->occluded(p, to_light->direction, to_light->distance)) {
+            if (!to_light || !m_scene.directStored(li) ||
+                m_tracer->occluded(p, to_light->direction, to_light->distance)) {
                 continue;
             }
             value += sh::projectDelta(to_light->direction, normalIrradianceAt(light, p), m_order);

@@ -11,6 +11,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -87,6 +88,37 @@ struct EnvironmentConfig {
     std::filesystem::path file; // lat-long image (relative paths resolve against the config)
     float intensity = 1.0f;
     float rotationDeg = 0.0f;
+};
+
+// Light modes (docs/baking.md#light-modes): what the bake stores of each source of light, so
+// that an engine which shades some lights itself does not count their direct light twice.
+//  * Baked: direct and bounced light (the default).
+//  * Indirect: only what the light reaches after at least one bounce; its direct light at the
+//    probe is left out (Unity's Mixed lights, "Baked Indirect"; Unreal's stationary lights).
+//  * None: the light is left out of the bake altogether.
+enum class LightMode : uint8_t { Baked, Indirect, None };
+std::string_view toString(LightMode mode); // "baked", "indirect", "none"
+
+struct LightModesConfig {
+    LightMode punctual = LightMode::Baked;    // every KHR_lights_punctual light not in perLight
+    LightMode emissive = LightMode::Baked;    // emissive surfaces
+    LightMode environment = LightMode::Baked; // the environment (sky)
+    // Per light, by glTF light name or by index into the file's KHR_lights_punctual lights (as
+    // text: "0"); a name or index no light has is an error at bake time.
+    std::vector<std::pair<std::string, LightMode>> perLight;
+
+    bool allBaked() const {
+        if (punctual != LightMode::Baked || emissive != LightMode::Baked ||
+            environment != LightMode::Baked) {
+            return false;
+        }
+        for (const auto& [key, mode] : perLight) {
+            if (mode != LightMode::Baked) {
+                return false;
+            }
+        }
+        return true;
+    }
 };
 
 struct PathConfig {
@@ -209,6 +241,7 @@ struct BakeConfig {
     VplConfig vpl;
     LpvConfig lpv;
     EnvironmentConfig environment;
+    LightModesConfig lights;
     float backfaceThreshold = 0.25f; // probe invalid when more of its rays hit back faces
     bool dilate = true;              // fill invalid probes from valid neighbours
     // Bricked volumes: an invalid probe on a box face (one lying on a wall or floor the box

@@ -100,6 +100,15 @@ struct Scene {
     uint64_t sourceHash = 0;           // xxHash64 of the glTF/glb file bytes
     std::string source;                // the file it was loaded from, for messages (may be empty)
     std::vector<std::string> warnings; // non-fatal problems, each naming file and field
+    // Light modes (BakeConfig::lights; applied by bake() to its own copy of the scene): whether a
+    // probe stores each source's direct light. Per light, 0 = left out (mode indirect: only its
+    // bounced light is stored); empty = every light's is stored. Lights in mode none are removed.
+    std::vector<uint8_t> lightDirectStored;
+    bool emissiveDirectStored = true;
+    bool environmentDirectStored = true;
+    bool directStored(size_t light) const {
+        return lightDirectStored.empty() || lightDirectStored[light] != 0;
+    }
 
     bool hasGeometry() const { return !triangles.empty(); }
     // Linear albedo / emission of triangle `tri` at barycentrics (b1, b2) (Embree's u, v).
