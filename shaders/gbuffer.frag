@@ -6,6 +6,10 @@
 layout(std140, set = 0, binding = 0) uniform PkFrameBlock {
     PkFrameGpu pk_frame;
 };
+// Per pixel, which lights reach it (render_layout.h, PK_LIGHT_MASK_BINDING).
+layout(std430, set = 0, binding = PK_LIGHT_MASK_BINDING) readonly buffer PkLightMask {
+    uint pk_light_mask[];
+};
 // The draw's base-colour texture (a 1 x 1 white one for untextured triangles and probe spheres).
 // CPU twin: RgbaImage::sampleBilinear (formats/environment.hpp): LINEAR, REPEAT, no mipmaps.
 layout(set = 1, binding = 0) uniform sampler2D pk_base_color;
@@ -41,4 +45,8 @@ void main() {
     g_albedo = vec4(in_albedo * textureLod(pk_base_color, in_uv, 0.0).rgb, 1.0);
     g_emission = vec4(in_emission, 1.0);
     g_id = in_id;
+    if ((in_id & 3u) == PK_KIND_SURFACE) {
+        const uvec2 px = uvec2(gl_FragCoord.xy);
+        g_id |= (pk_light_mask[px.x + px.y * pk_frame.size.x] & 0xffu) << PK_LIGHT_MASK_SHIFT;
+    }
 }

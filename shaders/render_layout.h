@@ -45,6 +45,15 @@ using uvec4 = glm::uvec4;
 // Largest binary16 value: the G-buffer's emission target holds the background radiance.
 #define PK_HALF_MAX 65504.0
 
+// The light mask (G-buffer pass, set 0, binding 1; one uint per pixel, x + width * y): bit i set
+// where lights[i] reaches the pixel's surface point. The renderer fills it with every bit set
+// unless FrameSettings::lightVisibility gives the traced visibility (shadows). gbuffer.frag
+// copies a surface pixel's mask into bits 8..15 of its id (PK_KIND_SURFACE carries no probe),
+// which shade.comp reads: the shading pass's stage has no resource to spare on lavapipe
+// (maxPerStageResources 128, nearly all the volume slots' textures).
+#define PK_LIGHT_MASK_BINDING 1
+#define PK_LIGHT_MASK_SHIFT 8u
+
 // PkLightGpu.info.x.
 #define PK_LIGHT_POINT 0u
 #define PK_LIGHT_SPOT 1u

@@ -23,14 +23,18 @@ layout(set = 1, binding = 4, rgba16f) uniform readonly image2D g_emission;
 layout(set = 1, binding = 5, r32ui) uniform readonly uimage2D g_id;
 layout(set = 1, binding = 6, rgba32f) uniform writeonly image2D out_color;
 
-// Unshadowed irradiance from the frame's punctual lights on a surface at p with normal n. CPU
-// twin: the sum over the lights of probekit::irradianceAt (formats/include/probekit/formats/
-// light.hpp), mirrored term for term: I / d^2, KHR_lights_punctual's range window (rangeWindow),
-// the glTF spot cone ramp (normalIrradianceAt), times max(0, n . l). The baker's integrators use
-// the same functions, so rendered direct light matches what a bake with direct light stores.
-vec3 pk_direct_irradiance(vec3 p, vec3 n) {
+// Irradiance from the frame's punctual lights on a surface at p with normal n, each light
+// counted where the pixel's light mask (`mask`, PK_LIGHT_MASK_BINDING) says it arrives. CPU
+// twin: the sum over the visible lights of probekit::irradianceAt (formats/include/probekit/
+// formats/light.hpp), mirrored term for term: I / d^2, KHR_lights_punctual's range window
+// (rangeWindow), the glTF spot cone ramp (normalIrradianceAt), times max(0, n . l). The baker's
+// integrators use the same functions, so rendered direct light matches what a bake stores.
+vec3 pk_direct_irradiance(vec3 p, vec3 n, uint mask) {
     vec3 e = vec3(0.0);
     for (uint i = 0u; i < pk_frame.info.y; ++i) {
+        if (((mask >> i) & 1u) == 0u) {
+            continue;
+        }
         const PkLightGpu light = pk_frame.lights[i];
         if (light.info.x == PK_LIGHT_DIRECTIONAL) {
             // With the dynamic GI's pass, directional lights are shaded there, shadowed.
@@ -118,12 +122,12 @@ void main() {
         // dynamic GI's pass (gi_shade.comp) adds its own after this one.
         vec3 e = (pk_frame.info.w & PK_FRAME_NO_BAKED) != 0u ? vec3(0.0)
                                                              : pk_irradiance(position, n);
+        if (pk_frame.info.z != 0u) {
+            e += pk_direct_irradiance(position, n, (id >> PK_LIGHT_MASK_SHIFT) & 0xffu);
+        }
         if (view == PK_VIEW_IRRADIANCE) {
             color = e;
         } else {
-            if (pk_frame.info.z != 0u) {
-                e += pk_direct_irradiance(position, n);
-            }
             color = imageLoad(g_albedo, px).rgb / PK_PI * e + imageLoad(g_emission, px).rgb;
         }
     }

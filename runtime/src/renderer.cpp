@@ -107,7 +107,7 @@ Result<Renderer> Renderer::create(GpuContext& context) {
 
     const VkDescriptorPoolSize sizes[3] = {{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 4},
                                            {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kShadeImages + 4},
-                                           {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 5}};
+                                           {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 6}};
     VkDescriptorPoolCreateInfo pool{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
     pool.maxSets = 3;
     pool.poolSizeCount = 3;
@@ -184,6 +184,12 @@ Result<Frame> Renderer::render(GpuVolumeSet& volumes, const FrameSettings& setti
                          "renderer: " + std::to_string(settings.lights.size()) +
                              " lights, at most " + std::to_string(kMaxRenderLights));
     }
+    const size_t pixels = size_t(settings.width) * settings.height;
+    if (!settings.lightVisibility.empty() && settings.lightVisibility.size() != pixels) {
+        return makeError(ErrorCode::InvalidArgument,
+                         "renderer: " + std::to_string(settings.lightVisibility.size()) +
+                             " light masks for " + std::to_string(pixels) + " pixels");
+    }
     const Camera& cam = settings.camera;
     if (!(cam.nearPlane > 0.0f) || !(cam.farPlane > cam.nearPlane) ||
         !(cam.verticalFovDeg > 0.0f && cam.verticalFovDeg < 180.0f) ||
@@ -196,6 +202,8 @@ Result<Frame> Renderer::render(GpuVolumeSet& volumes, const FrameSettings& setti
         PK_TRY(impl.context->waitIdle());
         PK_TRY(impl.createTargets(settings.width, settings.height));
     }
+    // The previous frame is finished (render waits for each), so the mask is free to write.
+    impl.writeLightMask(settings);
     const bool gi_view = settings.view == RenderView::GiIrradiance ||
                          settings.view == RenderView::GiGeometry ||
                          settings.view == RenderView::GiAo;
@@ -228,7 +236,6 @@ Result<Frame> Renderer::render(GpuVolumeSet& volumes, const FrameSettings& setti
         frame.timings.gbufferMs = double(ticks[1] - ticks[0]) * ms;
         frame.timings.shadeMs = double(ticks[2] - ticks[1]) * ms;
     }
-    const size_t pixels = size_t(settings.width) * settings.height;
     const auto* data = static_cast<const glm::vec4*>(impl.readback.mapped);
     if (settings.readbackColor) {
         frame.color.assign(data, data + pixels);

@@ -1,5 +1,6 @@
 // One frame: the size-dependent targets, the frame uniforms and the dynamic GI's set, and the
 // commands of the G-buffer pass, the shading passes and the readback copies.
+#include <algorithm>
 #include <array>
 #include <cstring>
 
@@ -17,7 +18,38 @@ void Renderer::Impl::destroyTargets() {
         detail::destroy(d, *image);
     }
     detail::destroy(d, readback);
+    detail::destroy(d, lightMask);
     width = height = 0;
+}
+
+// The shading set points at the current targets, the frame set at the light mask.
+void Renderer::Impl::writeShadeSet() {
+    const VkDescriptorImageInfo images[kShadeImages] = {
+        {VK_NULL_HANDLE, position.view, VK_IMAGE_LAYOUT_GENERAL},
+        {VK_NULL_HANDLE, normal.view, VK_IMAGE_LAYOUT_GENERAL},
+        {VK_NULL_HANDLE, albedo.view, VK_IMAGE_LAYOUT_GENERAL},
+        {VK_NULL_HANDLE, emission.view, VK_IMAGE_LAYOUT_GENERAL},
+        {VK_NULL_HANDLE, id.view, VK_IMAGE_LAYOUT_GENERAL},
+        {VK_NULL_HANDLE, color.view, VK_IMAGE_LAYOUT_GENERAL}};
+    std::array<VkWriteDescriptorSet, kShadeImages + 1> writes{};
+    // The last write: the light mask, in the G-buffer pass's frame set.
+    for (uint32_t i = 0; i < kShadeImages; ++i) {
+        writes[i].sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+        writes[i].dstSet = shadeSet;
+        writes[i].dstBinding = i + 1;
+        writes[i].descriptorCount = 1;
+        writes[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+        writes[i].pImageInfo = &images[i];
+    }
+    const VkDescriptorBufferInfo mask_info{lightMask.buffer, 0, VK_WHOLE_SIZE};
+    VkWriteDescriptorSet& mask_write = writes[kShadeImages];
+    mask_write.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+    mask_write.dstSet = frameSet;
+    mask_write.dstBinding = PK_LIGHT_MASK_BINDING;
+    mask_write.descriptorCount = 1;
+    mask_write.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    mask_write.pBufferInfo = &mask_info;
+    vkUpdateDescriptorSets(device(), uint32_t(writes.size()), writes.data(), 0, nullptr);
 }
 
 Result<void> Renderer::Impl::createTargets(uint32_t w, uint32_t h) {
@@ -69,25 +101,14 @@ Result<void> Renderer::Impl::createTargets(uint32_t w, uint32_t h) {
         return buffer.error();
     }
     readback = buffer.value();
-
-    // The shading set points at the new images.
-    const VkDescriptorImageInfo images[kShadeImages] = {
-        {VK_NULL_HANDLE, position.view, VK_IMAGE_LAYOUT_GENERAL},
-        {VK_NULL_HANDLE, normal.view, VK_IMAGE_LAYOUT_GENERAL},
-        {VK_NULL_HANDLE, albedo.view, VK_IMAGE_LAYOUT_GENERAL},
-        {VK_NULL_HANDLE, emission.view, VK_IMAGE_LAYOUT_GENERAL},
-        {VK_NULL_HANDLE, id.view, VK_IMAGE_LAYOUT_GENERAL},
-        {VK_NULL_HANDLE, color.view, VK_IMAGE_LAYOUT_GENERAL}};
-    std::array<VkWriteDescriptorSet, kShadeImages> writes{};
-    for (uint32_t i = 0; i < kShadeImages; ++i) {
-        writes[i].sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
-        writes[i].dstSet = shadeSet;
-        writes[i].dstBinding = i + 1;
-        writes[i].descriptorCount = 1;
-        writes[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
-        writes[i].pImageInfo = &images[i];
+    Result<Buffer> mask = detail::createBuffer(*context, VkDeviceSize(w) * h * sizeof(uint32_t),
+                                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+    if (!mask) {
+        return mask.error();
     }
-    vkUpdateDescriptorSets(device(), uint32_t(writes.size()), writes.data(), 0, nullptr);
+    lightMask = mask.value();
+
+    writeShadeSet();
     width = w;
     height = h;
     return {};
@@ -113,6 +134,16 @@ bool isProbeView(RenderView view) {
 }
 
 } // namespace
+
+void Renderer::Impl::writeLightMask(const FrameSettings& settings) {
+    uint32_t* masks = static_cast<uint32_t*>(lightMask.mapped);
+    const size_t pixels = size_t(settings.width) * settings.height;
+    if (settings.lightVisibility.empty()) {
+        std::fill(masks, masks + pixels, ~0u);
+    } else {
+        std::memcpy(masks, settings.lightVisibility.data(), pixels * sizeof(uint32_t));
+    }
+}
 
 gpu::PkFrameGpu Renderer::Impl::frameUniformsFor(const FrameSettings& settings, bool gi) const {
     gpu::PkFrameGpu frame{};

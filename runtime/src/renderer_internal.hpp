@@ -156,12 +156,14 @@ struct Renderer::Impl {
     uint32_t height = 0;
     Image position, normal, albedo, emission, id, depth, color;
     VkFramebuffer framebuffer = VK_NULL_HANDLE;
-    Buffer readback; // color, position, normal one after the other
+    Buffer readback;  // color, position, normal one after the other
+    Buffer lightMask; // PK_LIGHT_MASK_BINDING (frame set): one uint per pixel, host-visible
 
     ~Impl();
     VkDevice device() const { return context->device(); }
     void destroyTargets();
     Result<void> createTargets(uint32_t w, uint32_t h);
+    void writeShadeSet();
     // Render pass, layouts and every pipeline, one function each.
     Result<void> createPipelines();
     Result<void> createRenderPass();
@@ -184,6 +186,8 @@ struct Renderer::Impl {
                 uint32_t instance_count);
     // The frame's uniforms for `settings` (gi: the dynamic GI's pass runs).
     gpu::PkFrameGpu frameUniformsFor(const FrameSettings& settings, bool gi) const;
+    // The light mask buffer for this frame (FrameSettings::lightVisibility, or all bits set).
+    void writeLightMask(const FrameSettings& settings);
     // Frame uniforms, captured in the command buffer: `frame` copied into the uniform buffer
     // between barriers against earlier reads and for the passes' reads.
     void recordFrameUniforms(VkCommandBuffer cmd, const gpu::PkFrameGpu& frame);

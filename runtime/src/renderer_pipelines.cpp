@@ -199,11 +199,13 @@ Result<void> Renderer::Impl::createRenderPass() {
 }
 
 Result<void> Renderer::Impl::createLayouts() {
-    // G-buffer pass: the frame uniforms alone.
-    const VkDescriptorSetLayoutBinding frame_binding{
-        0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
-        VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};
-    PK_TRY(detail::createDescriptorSetLayout(device(), {&frame_binding, 1}, frameLayout));
+    // G-buffer pass: the frame uniforms and the light mask (render_layout.h).
+    const VkDescriptorSetLayoutBinding frame_bindings[2] = {
+        {0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
+         VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+        {PK_LIGHT_MASK_BINDING, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+         nullptr}};
+    PK_TRY(detail::createDescriptorSetLayout(device(), frame_bindings, frameLayout));
     // G-buffer pass, set 1: the draw's texture (base colour, or the environment's lat-long).
     const VkDescriptorSetLayoutBinding texture_binding{0, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
                                                        1, VK_SHADER_STAGE_FRAGMENT_BIT, nullptr};

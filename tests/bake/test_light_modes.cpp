@@ -15,6 +15,7 @@
 #include "bake_test_support.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/config.hpp"
+#include "probekit/baker/light_visibility.hpp"
 #include "probekit/formats/light.hpp"
 #include "probekit/formats/sh.hpp"
 #include "trace/ray_tracer.hpp"
@@ -294,6 +295,71 @@ TEST(LightModes, ConfigErrorsNameTheFieldAndTheLights) {
     ASSERT_FALSE(parsed.ok());
     EXPECT_NE(parsed.error().message.find("lights.per_light.key"), std::string::npos)
         << parsed.error().message;
+}
+
+} // namespace probekit
+
+namespace probekit {
+
+// baker::lightVisibility, the shadows `probekit render --direct-light` applies: a point light
+// 2 m above a floor, a 1 m square roof 1 m above the floor under it, and a sun straight down.
+// Floor points under the roof (|x|, |z| < 0.5 - margin) see neither; points outside the roof's
+// shadow from the point light (its shadow on the floor spans |x|, |z| < 1) see both; a point with
+// its normal turned away sees nothing; a point with no surface (zero normal) gets mask 0.
+TEST(LightModes, LightVisibilityTracesEachLightsShadow) {
+    baker::Scene scene = test::emptyScene();
+    const uint32_t grey = test::addMaterial(scene, glm::vec3(0.5f), glm::vec3(0.0f));
+    auto quad = [&](float y, float half) {
+        const uint32_t base = uint32_t(scene.positions.size());
+        for (const glm::vec2 c :
+             {glm::vec2(-1, -1), glm::vec2(1, -1), glm::vec2(1, 1), glm::vec2(-1, 1)}) {
+            scene.positions.push_back(glm::vec3(half * c.x, y, half * c.y));
+            scene.uvs.push_back(glm::vec2(0.0f));
+        }
+        for (const glm::uvec3 t : {glm::uvec3(0, 1, 2), glm::uvec3(0, 2, 3)}) {
+            scene.triangles.push_back(t + base);
+            scene.triangleMaterial.push_back(grey);
+            scene.triangleNode.push_back(-1);
+        }
+    };
+    quad(0.0f, 4.0f); // floor
+    quad(1.0f, 0.5f); // roof
+    scene.bounds = {glm::vec3(-4, 0, -4), glm::vec3(4, 1, 4)};
+    PunctualLight point;
+    point.type = LightType::Point;
+    point.position = glm::vec3(0, 2, 0);
+    point.intensity = glm::vec3(1.0f);
+    PunctualLight sun;
+    sun.type = LightType::Directional;
+    sun.direction = glm::vec3(0, -1, 0);
+    sun.intensity = glm::vec3(1.0f);
+    const std::vector<PunctualLight> lights = {point, sun};
+    const glm::vec3 up(0, 1, 0);
+    struct Case {
+        baker::SurfacePoint p;
+        uint32_t mask;
+    };
+    std::vector<Case> cases;
+    for (float x : {-0.45f, 0.0f, 0.3f}) {
+        cases.push_back({{glm::vec3(x, 0, 0.2f), up}, 0u});      // under the roof
+        cases.push_back({{glm::vec3(x, 0, 1.2f), up}, 3u});      // beyond both shadows
+        cases.push_back({{glm::vec3(0.7f, 0, x), up}, 2u});      // the point light's shadow only
+        cases.push_back({{glm::vec3(x, 1, 0.2f), up}, 3u});      // on the roof
+        cases.push_back({{glm::vec3(x, 0.99f, 0.2f), -up}, 0u}); // its underside
+    }
+    cases.push_back({{glm::vec3(3, 0, 3), glm::vec3(0.0f)}, 0u}); // no surface
+    std::vector<baker::SurfacePoint> points;
+    for (const Case& c : cases) {
+        points.push_back(c.p);
+    }
+    Result<std::vector<uint32_t>> masks = baker::lightVisibility(scene, points, lights, 2);
+    ASSERT_TRUE(masks.ok()) << masks.error().message;
+    for (size_t i = 0; i < cases.size(); ++i) {
+        EXPECT_EQ(masks.value()[i], cases[i].mask)
+            << "point " << i << " at (" << points[i].position.x << ", " << points[i].position.y
+            << ", " << points[i].position.z << ")";
+    }
+    EXPECT_FALSE(baker::lightVisibility(scene, points, std::vector<PunctualLight>(33, point)).ok());
 }
 
 } // namespace probekit

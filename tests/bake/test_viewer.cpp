@@ -143,10 +143,38 @@ TEST(ViewerScene, DirectLightsKeepTheRendererLimitAndCountTheRest) {
     for (size_t i = 0; i < s.lights.size(); ++i) {
         s.lights[i].name = std::to_string(i);
     }
-    const viewer::LightSelection chosen = viewer::directLights(s);
-    ASSERT_EQ(chosen.lights.size(), runtime::kMaxRenderLights);
-    EXPECT_EQ(chosen.lights.back().name, std::to_string(runtime::kMaxRenderLights - 1));
-    EXPECT_EQ(chosen.dropped, 3u);
+    // A file that records no light modes: every light is the renderer's to add.
+    const Result<viewer::LightSelection> chosen = viewer::directLights(s, BakeMetadata{}, "f");
+    ASSERT_TRUE(chosen.ok()) << chosen.error().message;
+    ASSERT_EQ(chosen.value().lights.size(), runtime::kMaxRenderLights);
+    EXPECT_EQ(chosen.value().lights.back().name, std::to_string(runtime::kMaxRenderLights - 1));
+    EXPECT_EQ(chosen.value().dropped, 3u);
+    EXPECT_EQ(chosen.value().baked, 0u);
+}
+
+// With recorded light modes only the lights whose direct light the bake left out are added:
+// here light "1" (indirect, by name) and light 2 (none, by index); the rest are baked.
+TEST(ViewerScene, DirectLightsAreTheLightsTheBakeLeftOut) {
+    baker::Scene s;
+    s.lights.resize(4);
+    for (size_t i = 0; i < s.lights.size(); ++i) {
+        s.lights[i].name = "l" + std::to_string(i);
+    }
+    BakeMetadata m;
+    m.parametersJson =
+        R"({"lights": {"mode": "baked", "per_light": {"l1": "indirect", "2": "none"}}})";
+    const Result<viewer::LightSelection> chosen = viewer::directLights(s, m, "f.pvol");
+    ASSERT_TRUE(chosen.ok()) << chosen.error().message;
+    ASSERT_EQ(chosen.value().lights.size(), 2u);
+    EXPECT_EQ(chosen.value().lights[0].name, "l1");
+    EXPECT_EQ(chosen.value().lights[1].name, "l2");
+    EXPECT_EQ(chosen.value().baked, 2u);
+    // A recorded key the scene shown has no light for names the file.
+    m.parametersJson = R"({"lights": {"per_light": {"lamp": "indirect"}}})";
+    const Result<viewer::LightSelection> bad = viewer::directLights(s, m, "f.pvol");
+    ASSERT_FALSE(bad.ok());
+    EXPECT_NE(bad.error().message.find("f.pvol: lights.per_light.\"lamp\""), std::string::npos)
+        << bad.error().message;
 }
 
 TEST(ViewerEnvironment, SpecsAreReadAsBakeReadsThem) {

@@ -245,6 +245,52 @@ TEST_F(Renderer, FlatPlaneIsAlbedoOverPiTimesE) {
     checkPixels(lit.value(), kShadedRelative, "plane_direct", [&](glm::vec3 p, glm::vec3 n) {
         return kAlbedo / sh::kPi * (cpu.irradiance(p, n) + direct(p, n));
     });
+
+    // Shadows (FrameSettings::lightVisibility): a pixel's mask switches each light off where its
+    // bit is clear. Here stripes from the pixel's position, a different phase per light, so that
+    // every combination occurs; the twin applies the same function to the same positions.
+    auto maskAt = [](glm::vec3 p) {
+        uint32_t m = 0u;
+        for (uint32_t i = 0; i < 3; ++i) {
+            if (glm::fract(4.0f * p.x + 3.0f * p.z + 0.37f * float(i)) < 0.5f) {
+                m |= 1u << i;
+            }
+        }
+        return m;
+    };
+    settings.lightVisibility.assign(lit.value().position.size(), 0u);
+    size_t partly_shadowed = 0;
+    for (size_t i = 0; i < lit.value().position.size(); ++i) {
+        if (lit.value().position[i].w > 0.0f) {
+            settings.lightVisibility[i] = maskAt(glm::vec3(lit.value().position[i]));
+            partly_shadowed += settings.lightVisibility[i] != 7u ? 1 : 0;
+        }
+    }
+    EXPECT_GT(partly_shadowed, size_t(96 * 64 / 8));
+    auto masked = [&](glm::vec3 p, glm::vec3 n) {
+        glm::vec3 e(0.0f);
+        for (size_t i = 0; i < settings.lights.size(); ++i) {
+            if ((maskAt(p) >> i) & 1u) {
+                e += irradianceAt(settings.lights[i], p, n);
+            }
+        }
+        return e;
+    };
+    Result<Frame> shadowed = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(shadowed.ok()) << shadowed.error().message;
+    checkPixels(shadowed.value(), kShadedRelative, "plane_direct_shadowed",
+                [&](glm::vec3 p, glm::vec3 n) {
+                    return kAlbedo / sh::kPi * (cpu.irradiance(p, n) + masked(p, n));
+                });
+    // The irradiance view adds the same direct light: E itself.
+    settings.view = RenderView::Irradiance;
+    Result<Frame> shadowed_e = renderer().render(gpu.value(), settings);
+    ASSERT_TRUE(shadowed_e.ok()) << shadowed_e.error().message;
+    checkPixels(shadowed_e.value(), kIrradianceRelative, "plane_direct_shadowed_irradiance",
+                [&](glm::vec3 p, glm::vec3 n) { return cpu.irradiance(p, n) + masked(p, n); });
+    // A mask count that is not one per pixel is refused.
+    settings.lightVisibility.pop_back();
+    EXPECT_FALSE(renderer().render(gpu.value(), settings).ok());
 }
 
 // Direct light alone: a black volume makes pk_irradiance exactly 0, so each pixel of the shaded

@@ -263,20 +263,33 @@ Result<runtime::Renderer> createRenderer(runtime::GpuContext& gpu, const viewer:
     return renderer;
 }
 
-// The scene's punctual lights for --direct-light, as many as the renderer takes.
-std::vector<PunctualLight> directLights(const RenderOptions& o, const baker::Scene& scene) {
-    viewer::LightSelection selection = viewer::directLights(scene);
-    if (selection.dropped > 0) {
+// The scene's punctual lights for --direct-light: those the bake left out (light modes), as many
+// as the renderer takes.
+Result<std::vector<PunctualLight>> directLights(const RenderOptions& o, const baker::Scene& scene,
+                                                const BakeMetadata& metadata) {
+    Result<viewer::LightSelection> selection =
+        viewer::directLights(scene, metadata, o.volumes.empty() ? o.scene : o.volumes);
+    if (!selection) {
+        return selection.error();
+    }
+    const viewer::LightSelection& s = selection.value();
+    if (s.dropped > 0) {
         printError("render", "warning: " + o.scene + ": only the first " +
                                  std::to_string(runtime::kMaxRenderLights) +
                                  " lights add direct light");
     }
-    return std::move(selection.lights);
+    if (s.lights.empty()) {
+        printError("render", "warning: --direct-light: the volumes hold the direct light of all " +
+                                 std::to_string(s.baked) +
+                                 " of the scene's lights (light mode baked); nothing is added");
+    }
+    return s.lights;
 }
 
 // The frame the options ask for: size, camera, view and direct light.
 Result<runtime::FrameSettings> frameSettings(const RenderOptions& o, const baker::Scene& scene,
-                                             const std::vector<Volume>& volumes) {
+                                             const std::vector<Volume>& volumes,
+                                             const BakeMetadata& metadata) {
     runtime::FrameSettings settings;
     settings.width = o.framing.size[0];
     settings.height = o.framing.size[1];
@@ -293,7 +306,11 @@ Result<runtime::FrameSettings> frameSettings(const RenderOptions& o, const baker
                                         std::begin(views));
     settings.directLight = o.directLight;
     if (o.directLight) {
-        settings.lights = directLights(o, scene);
+        Result<std::vector<PunctualLight>> lights = directLights(o, scene, metadata);
+        if (!lights) {
+            return lights.error();
+        }
+        settings.lights = std::move(lights.value());
     }
     return settings;
 }
@@ -468,6 +485,30 @@ Result<nlohmann::json> runBench(const RenderOptions& o, runtime::GpuContext& gpu
     return benchReport(o, settings, run);
 }
 
+// --direct-light's shadows: a first frame's G-buffer, each pixel's shadow rays to the lights
+// traced on the CPU with the baker's ray tracer (viewer::lightVisibility), the masks kept in
+// `settings` for the frame that is written.
+Result<void> traceShadows(const baker::Scene& scene, runtime::Renderer& renderer,
+                          runtime::GpuVolumeSet& set, runtime::FrameSettings& settings) {
+    if (!settings.directLight || settings.lights.empty()) {
+        return {};
+    }
+    runtime::FrameSettings gbuffer = settings;
+    gbuffer.readbackColor = false;
+    gbuffer.readbackGBuffer = true;
+    Result<runtime::Frame> frame = renderer.render(set, gbuffer);
+    if (!frame) {
+        return frame.error();
+    }
+    Result<std::vector<uint32_t>> masks =
+        viewer::lightVisibility(scene, frame.value(), settings.lights);
+    if (!masks) {
+        return masks.error();
+    }
+    settings.lightVisibility = std::move(masks.value());
+    return {};
+}
+
 // The frame itself: rendered, written, and reported (the --bench report, or one line).
 int renderAndWrite(const RenderOptions& o, const runtime::GpuContext& gpu,
                    runtime::Renderer& renderer, runtime::GpuVolumeSet& set,
@@ -548,9 +589,14 @@ int runRender(const RenderOptions& o) {
     if (!renderer) {
         return fail(renderer.error().message);
     }
-    Result<runtime::FrameSettings> settings = frameSettings(o, scene.value(), volumes);
+    Result<runtime::FrameSettings> settings = frameSettings(o, scene.value(), volumes, metadata);
     if (!settings) {
         return fail(settings.error().message);
+    }
+    if (Result<void> shadows =
+            traceShadows(scene.value(), renderer.value(), set.value(), settings.value());
+        !shadows) {
+        return fail(shadows.error().message);
     }
     std::optional<nlohmann::json> bench;
     if (o.bench > 0) {
@@ -865,7 +911,8 @@ int runRenderDynamicGi(const RenderOptions& o) {
     if (!renderer) {
         return fail(renderer.error().message);
     }
-    Result<runtime::FrameSettings> frame_settings = frameSettings(o, scene, in.volumes);
+    Result<runtime::FrameSettings> frame_settings =
+        frameSettings(o, scene, in.volumes, in.metadata);
     if (!frame_settings) {
         return fail(frame_settings.error().message);
     }
@@ -957,8 +1004,10 @@ void addRenderShadingOptions(CLI::App* cmd, RenderOptions& o) {
                   "drop the volumes' visibility data before upload: plain trilinear "
                   "interpolation, as for volumes baked without it (compare with and without)");
     cmd->add_flag("--direct-light", o.directLight,
-                  "add unshadowed direct light from the scene's punctual lights (for volumes "
-                  "baked without it)");
+                  "add the direct light of the scene's punctual lights the volumes left out "
+                  "(light modes indirect and none; every light for files that record no "
+                  "modes), shadowed by rays traced on the CPU from the G-buffer (with "
+                  "--dynamic-gi: unshadowed, but directional lights shadowed by the GI)");
     cmd->add_option("--normal-offset", o.normalOffset,
                     "metres along the normal to move each shading point before sampling "
                     "(against self-leaking; 0 matches probekit sample)")

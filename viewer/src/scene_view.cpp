@@ -12,6 +12,8 @@
 #include <nlohmann/json.hpp>
 
 #include "probekit/baker/config.hpp"
+#include "probekit/baker/light_modes.hpp"
+#include "probekit/baker/light_visibility.hpp"
 
 namespace probekit::viewer {
 namespace {
@@ -99,12 +101,46 @@ grid::Aabb framedBox(const baker::Scene& scene, const std::vector<Volume>& volum
     return scene.hasGeometry() ? scene.bounds : worldBounds(volumes);
 }
 
-LightSelection directLights(const baker::Scene& scene) {
+Result<LightSelection> directLights(const baker::Scene& scene, const BakeMetadata& metadata,
+                                    const std::string& source) {
+    baker::LightModesConfig modes;
+    modes.punctual = baker::LightMode::Indirect; // files that record no modes: every light
+    const nlohmann::json recorded = nlohmann::json::parse(metadata.parametersJson, nullptr, false);
+    if (recorded.is_object() && recorded.contains("lights")) {
+        Result<baker::BakeConfig> config =
+            baker::parseBakeConfig(nlohmann::json{{"lights", recorded["lights"]}}.dump(), source);
+        if (!config) {
+            return config.error();
+        }
+        modes = config.value().lights;
+    }
+    Result<std::vector<baker::LightMode>> per_light = baker::lightModesOf(scene, modes);
+    if (!per_light) {
+        return makeError(per_light.error().code, source + ": " + per_light.error().message);
+    }
     LightSelection out;
-    const size_t kept = std::min(scene.lights.size(), runtime::kMaxRenderLights);
-    out.lights.assign(scene.lights.begin(), scene.lights.begin() + std::ptrdiff_t(kept));
-    out.dropped = scene.lights.size() - kept;
+    for (size_t i = 0; i < scene.lights.size(); ++i) {
+        if (per_light.value()[i] == baker::LightMode::Baked) {
+            ++out.baked;
+        } else if (out.lights.size() < runtime::kMaxRenderLights) {
+            out.lights.push_back(scene.lights[i]);
+        } else {
+            ++out.dropped;
+        }
+    }
     return out;
+}
+
+Result<std::vector<uint32_t>> lightVisibility(const baker::Scene& scene,
+                                              const runtime::Frame& gbuffer,
+                                              std::span<const PunctualLight> lights) {
+    std::vector<baker::SurfacePoint> points(gbuffer.position.size());
+    for (size_t i = 0; i < points.size(); ++i) {
+        if (gbuffer.position[i].w > 0.0f) {
+            points[i] = {glm::vec3(gbuffer.position[i]), glm::vec3(gbuffer.normal[i])};
+        }
+    }
+    return baker::lightVisibility(scene, points, lights);
 }
 
 Result<Environment> environmentFromSpec(const std::string& spec, const std::string& source) {

@@ -24,8 +24,9 @@ std::string lightList(const Scene& scene) {
     return out.empty() ? "none" : out;
 }
 
-// Each light's mode: lights.mode, or the last per_light entry naming it (by name or index).
-Result<std::vector<LightMode>> perLightModes(const Scene& scene, const LightModesConfig& modes) {
+} // namespace
+
+Result<std::vector<LightMode>> lightModesOf(const Scene& scene, const LightModesConfig& modes) {
     std::vector<LightMode> out(scene.lights.size(), modes.punctual);
     for (const auto& [key, mode] : modes.perLight) {
         bool found = false;
@@ -45,6 +46,8 @@ Result<std::vector<LightMode>> perLightModes(const Scene& scene, const LightMode
     }
     return out;
 }
+
+namespace {
 
 bool anyIndirect(const std::vector<LightMode>& lights, const LightModesConfig& modes) {
     for (LightMode m : lights) {
@@ -80,7 +83,7 @@ void applyPunctual(Scene& scene, const std::vector<LightMode>& modes) {
 
 Result<std::optional<Scene>> applyLightModes(const Scene& scene, const BakeConfig& config) {
     const LightModesConfig& modes = config.lights;
-    Result<std::vector<LightMode>> lights = perLightModes(scene, modes);
+    Result<std::vector<LightMode>> lights = lightModesOf(scene, modes);
     if (!lights) {
         return lights.error();
     }

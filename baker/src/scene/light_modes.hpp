@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "probekit/baker/config.hpp"
+#include "probekit/baker/light_modes.hpp"
 #include "probekit/baker/scene.hpp"
 #include "probekit/formats/result.hpp"
 

@@ -130,12 +130,16 @@ struct FrameSettings {
     uint32_t height = 480; // pixels
     Camera camera;
     RenderView view = RenderView::Shaded;
-    // Add unshadowed direct light from `lights` (for volumes baked without it): per pixel the
-    // sum of irradianceAt (formats/light.hpp) over the lights, which the shading pass mirrors
-    // (pk_direct_irradiance, shaders/shade.comp). Shaded and probes views only; the light's
-    // name is not used.
+    // Add direct light from `lights` (for volumes baked without it, e.g. lights in light mode
+    // indirect): per pixel the sum of irradianceAt (formats/light.hpp) over the lights that
+    // reach it, which the shading pass mirrors (pk_direct_irradiance, shaders/shade.comp).
+    // Shaded and irradiance views; the light's name is not used.
     bool directLight = false;
     std::vector<PunctualLight> lights; // at most kMaxRenderLights
+    // Shadows of `lights`: empty = every light reaches every pixel (unshadowed); else one mask
+    // per pixel (x + width * y), bit i set where lights[i] reaches the pixel's surface point, as
+    // a ray tracer finds it from a frame's G-buffer (viewer::lightVisibility).
+    std::vector<uint32_t> lightVisibility;
     // Probe sphere radius in metres before decimation (probeBudget); 0 = 0.15 x each volume's
     // smallest probe spacing.
     float probeRadius = 0.0f;

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -45,14 +46,27 @@ Result<void> uploadScene(runtime::Renderer& renderer, const RenderScene& scene);
 // What a default camera frames: the scene's bounds, or the volumes' when it has no triangles.
 grid::Aabb framedBox(const baker::Scene& scene, const std::vector<Volume>& volumes);
 
-// The scene's punctual lights the renderer adds as direct light: the first
-// runtime::kMaxRenderLights of them; `dropped` counts the rest.
+// The scene's punctual lights the renderer adds as direct light: those whose direct light the
+// volumes left out, by the light modes their bake recorded (docs/baking.md#light-modes: modes
+// indirect and none; every light when the file records no modes, as files before them), the
+// first runtime::kMaxRenderLights of them. `baked` counts the lights left to the volumes,
+// `dropped` those past the limit. A recorded per_light key the scene has no light for is an
+// error naming `source`.
 struct LightSelection {
     std::vector<PunctualLight> lights;
+    size_t baked = 0;
     size_t dropped = 0;
 };
 
-LightSelection directLights(const baker::Scene& scene);
+Result<LightSelection> directLights(const baker::Scene& scene, const BakeMetadata& metadata,
+                                    const std::string& source);
+
+// Per pixel of a frame rendered with its G-buffer read back (FrameSettings::readbackGBuffer),
+// which of `lights` reach the pixel's surface point (runtime::FrameSettings::lightVisibility),
+// traced against the scene (baker::lightVisibility).
+Result<std::vector<uint32_t>> lightVisibility(const baker::Scene& scene,
+                                              const runtime::Frame& gbuffer,
+                                              std::span<const PunctualLight> lights);
 
 // The environment `spec` names, as `probekit bake --env` reads it: "none" (black), "R,G,B"
 // constant radiance in W/sr/m^2, or a lat-long image file. Errors name `source`.
