@@ -114,8 +114,8 @@ std::vector<std::string> notesFor(const Resampled& rs, const ProbeTransform& t,
         notes.emplace_back("bevy: visibility data dropped (Bevy interpolates without it)");
     std::snprintf(buf, sizeof buf,
                   "bevy: ambient-cube projection error %.3g RMS, %.3g max (relative to RMS "
-                  "irradiance; half rounding adds up to %.2g)",
-                  pe.relRms, pe.relMax, std::ldexp(1.0, -11));
+                  "irradiance; half rounding adds at most 2^-11 of each value)",
+                  pe.relRms, pe.relMax);
     notes.emplace_back(buf);
     return notes;
 }

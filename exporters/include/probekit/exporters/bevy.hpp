@@ -36,9 +36,9 @@ struct BevyOptions {
 
 // One file, `out` (OUT.ktx2): RGBA16F texels (alpha 1), key/value entries KTXwriter and
 // probekit.transform (JSON: the LightProbe's translation and scale in metres, rotation
-// identity, and intensity 1). The notes give the transform, the projection error and, for a
-// resampled volume, the resampling error. Fails (OutOfRange, naming the voxel and face) where
-// E / pi exceeds binary16's 65504.
+// the identity quaternion as (x, y, z, w), intensity 1, and the units of the texels). The notes
+// give the transform, the projection error and, for a resampled volume, the resampling error. Fails
+// (OutOfRange, naming the voxel and face) where E / pi exceeds binary16's 65504.
 Result<ExportResult> exportBevy(const Volume& volume, const BevyOptions& options,
                                 const std::filesystem::path& out);
 
