@@ -18,16 +18,30 @@ if [ ! -f "$integrations/node_modules/ktx-parse/package.json" ]; then
     exit 77
 fi
 
+# Exports NAME.pvol and checks every texel against the sampler at the voxel centres.
+export_and_check() {
+    local name=$1
+    "$probekit" export "$work/$name.pvol" --format bevy -o "$work/$name.ktx2"
+    node "$here/bevy_ktx_parse.mjs" points "$work/$name.ktx2" >"$work/$name-points.csv"
+    "$probekit" sample "$work/$name.pvol" --points "$work/$name-points.csv" -o "$work/$name-E.csv"
+    node "$here/bevy_ktx_parse.mjs" check "$work/$name.ktx2" "$work/$name-E.csv"
+}
+
 rm -rf "$work"
 mkdir -p "$work"
 for position in center corner; do
-    pvol=$work/$position.pvol
-    ktx=$work/$position.ktx2
-    "$probekit" synth -o "$pvol" --resolution 4,2,8 --position "$position" --light 0.7,1.6,0.4 \
-        --intensity 2 >/dev/null
-    "$probekit" export "$pvol" --format bevy -o "$ktx"
-    node "$here/bevy_ktx_parse.mjs" points "$ktx" >"$work/$position-points.csv"
-    "$probekit" sample "$pvol" --points "$work/$position-points.csv" -o "$work/$position-E.csv"
-    node "$here/bevy_ktx_parse.mjs" check "$ktx" "$work/$position-E.csv"
+    "$probekit" synth -o "$work/$position.pvol" --resolution 4,2,8 --position "$position" \
+        --light 0.7,1.6,0.4 --intensity 2 >/dev/null
+    export_and_check "$position"
 done
+# A real bake (half storage, visibility, dilated and relocated probes) when the shared scenes are
+# beside the checkout, as in CI: the Cornell box, 8^3 probes, a second or two.
+cornell=$here/../../../shared/scenes/cornell-box/cornell_from_obj.gltf
+if [ -f "$cornell" ]; then
+    "$probekit" bake "$cornell" --config "$here/../../examples/cornell-bake.json" \
+        --resolution 8,8,8 --samples 128 -q -o "$work/cornell.pvol"
+    export_and_check cornell
+else
+    echo "bevy_test: no $cornell; the Cornell case is left out"
+fi
 echo "bevy_test: passed"
