@@ -868,8 +868,9 @@ static pkv_status pkv__file(pkv__reader* r, const uint8_t* bytes, size_t size, p
     uint8_t order_flag;
     uint64_t count;
     size_t i;
-    const size_t min_volume_bytes = PKV__MIN_VOLUME_BYTES_V1 + (r->version >= 2 ? 1u : 0u);
+    size_t min_volume_bytes;
     PKV__TRY(pkv__header(r, bytes, size));
+    min_volume_bytes = PKV__MIN_VOLUME_BYTES_V1 + (r->version >= 2 ? 1u : 0u);
     out->version = r->version;
     if (r->left == 0) {
         return pkv__fail(r, PKV_ERROR_TRUNCATED, "payload is empty");

@@ -310,6 +310,28 @@ TEST(CReader, AgreesOnEveryDamagedVariantOfASmallFile) {
     EXPECT_EQ(tally.disagreements(), 0u);
 }
 
+TEST(CReader, AgreesOnTheVolumeCountBoundOfEachVersion) {
+    // A volume count of 1 followed by 99, 100 or 101 zero bytes: the smallest volume is 100
+    // bytes in version 1 and 101 in version 2 (pvol.cpp's kMinVolumeBytes), so the count check
+    // passes or fails by one byte. (The C reader once took version 1's bound for every file;
+    // fuzz_c_reader found it.)
+    const std::vector<uint8_t> empty = encodePvol(generatedFile({}));
+    Tally tally;
+    for (const uint8_t version : {uint8_t(1), uint8_t(2)}) {
+        for (const size_t tail : {size_t(99), size_t(100), size_t(101)}) {
+            std::vector<uint8_t> bytes = empty;
+            bytes[8] = version;
+            bytes[bytes.size() - 8] = 1; // the volume count, the payload's last field
+            bytes.resize(bytes.size() + tail);
+            tally.check(withMatchingHeader(bytes), [=] {
+                return "version " + std::to_string(version) + ", " + std::to_string(tail) +
+                       " bytes after the count";
+            });
+        }
+    }
+    EXPECT_EQ(tally.disagreements(), 0u);
+}
+
 // --- the pieces ---------------------------------------------------------------------------------
 
 TEST(CReader, XxHash64MatchesFormats) {
