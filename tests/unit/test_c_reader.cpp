@@ -5,6 +5,9 @@
 // (tests/unit/c_reader_agreement.hpp).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <bit>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -145,14 +148,14 @@ Volume generatedVolume(const Kind& kind, uint32_t seed, bool small = false) {
         probes.push_back(randomProbe(rng, kind.order));
         validity[i] = rng() % 4 == 0 ? kProbeInvalid : kProbeValid;
     }
-    std::vector<uint8_t> visibility;
+    std::vector<uint8_t> occluders;
     if (kind.visibility) {
-        visibility.resize(probe_count * visibility::kBytesPerProbe);
-        for (uint8_t& byte : visibility) {
+        occluders.resize(probe_count * visibility::kBytesPerProbe);
+        for (uint8_t& byte : occluders) {
             byte = uint8_t(rng());
         }
     }
-    auto made = makeVolume(desc, probes, validity, visibility);
+    auto made = makeVolume(desc, probes, validity, occluders);
     EXPECT_TRUE(made.ok()) << (made.ok() ? "" : made.error().message);
     return std::move(made).value();
 }
@@ -243,8 +246,8 @@ std::vector<uint8_t> smallFile() {
                                       glm::uvec3(2, 1, 1), grid::PositionMode::Center);
     tiny_desc.shOrder = sh::Order::L1;
     const std::vector<sh::ShRgb> probes(2);
-    const std::vector<uint8_t> visibility(2 * visibility::kBytesPerProbe, 128);
-    auto tiny = makeVolume(tiny_desc, probes, {}, visibility);
+    const std::vector<uint8_t> occluders(2 * visibility::kBytesPerProbe, 128);
+    auto tiny = makeVolume(tiny_desc, probes, {}, occluders);
     EXPECT_TRUE(tiny.ok());
     return encodePvol(generatedFile({dense, bricked, tiny.value()}));
 }
@@ -329,6 +332,43 @@ TEST(CReader, AgreesOnTheVolumeCountBoundOfEachVersion) {
             });
         }
     }
+    EXPECT_EQ(tally.disagreements(), 0u);
+}
+
+TEST(CReader, AgreesOnRotationsAtTheUnitLengthTolerance) {
+    // The frame's quaternion must have length 1 within 1e-3 (grid.cpp), computed in float: the
+    // C reader has to round as the C++ one does. Quaternions (w, x, 0, 0) of length 1 - 1e-3 and
+    // 1 + 1e-3, a few ulps either way, at several angles.
+    const Volume volume =
+        generatedVolume({VolumeLayout::Dense, sh::Order::L1, Storage::Float32, false}, 0, true);
+    const std::vector<uint8_t> good = encodePvol(generatedFile({volume}));
+    // The identity rotation (w, x, y, z) = (1, 0, 0, 0), then the zero translation.
+    const uint8_t identity[28] = {0, 0, 0x80, 0x3f};
+    const auto found =
+        std::search(good.begin(), good.end(), std::begin(identity), std::end(identity));
+    ASSERT_NE(found, good.end());
+    const size_t rotation_at = size_t(found - good.begin());
+    Tally tally;
+    for (const float length : {1.0f - 1e-3f, 1.0f + 1e-3f}) {
+        for (const float angle : {0.0f, 0.1f, 0.7f, 1.3f, 2.9f}) {
+            const float w0 = length * std::cos(angle), x0 = length * std::sin(angle);
+            for (int dw = -4; dw <= 4; ++dw) {
+                for (int dx = -4; dx <= 4; ++dx) {
+                    const float w = std::bit_cast<float>(std::bit_cast<int32_t>(w0) + dw);
+                    const float x = std::bit_cast<float>(std::bit_cast<int32_t>(x0) + dx);
+                    std::vector<uint8_t> bytes =
+                        patched(good, rotation_at, std::bit_cast<uint32_t>(w), 4);
+                    bytes = patched(bytes, rotation_at + 4, std::bit_cast<uint32_t>(x), 4);
+                    tally.check(withMatchingHeader(bytes), [=] {
+                        return "rotation w " + std::to_string(w) + ", x " + std::to_string(x);
+                    });
+                }
+            }
+        }
+    }
+    tally.print("rotations at the tolerance");
+    EXPECT_GT(tally.accepted(), 0u);
+    EXPECT_LT(tally.accepted(), tally.inputs());
     EXPECT_EQ(tally.disagreements(), 0u);
 }
 
