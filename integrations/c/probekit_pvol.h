@@ -396,11 +396,13 @@ static pkv_status pkv__f32s(pkv__reader* r, float* values, int count, const char
 static pkv_status pkv__require(pkv__reader* r, uint64_t count, size_t element_bytes,
                                const char* what) {
     if (count > (uint64_t)(r->left / element_bytes)) {
+        char each[32] = "";
+        if (element_bytes > 1) {
+            snprintf(each, sizeof each, " (%u bytes each)", (unsigned)element_bytes);
+        }
         return pkv__fail(r, PKV_ERROR_TRUNCATED,
-                         "%s %llu (%u bytes each) needs more than the %llu payload bytes that "
-                         "remain",
-                         what, (unsigned long long)count, (unsigned)element_bytes,
-                         (unsigned long long)r->left);
+                         "%s %llu%s needs more than the %llu payload bytes that remain", what,
+                         (unsigned long long)count, each, (unsigned long long)r->left);
     }
     return PKV_OK;
 }
