@@ -12,7 +12,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-30}"
 shift || true
-all_targets=(fuzz_pvol fuzz_gltf fuzz_config fuzz_points)
+all_targets=(fuzz_pvol fuzz_gltf fuzz_config fuzz_points fuzz_c_reader)
 targets=("${@:-${all_targets[@]}}")
 
 flags="-fsanitize=address,undefined,fuzzer-no-link -fno-omit-frame-pointer -fno-sanitize-recover=undefined"
