@@ -6,9 +6,10 @@
 //
 //   node three_chromium.mjs ROOT WORKDIR PROBEKIT CASES_JSON
 // CASES_JSON: [{name, gltf, pvol, grid, visibility, eye, target, fov, size, median, max,
-//               picture?, exposure?, pictureSize?}], paths relative to WORKDIR (grid and gltf are URLs below
-// /work/). Prints one line per case and exits 1 when a median or max relative error exceeds
-// its tolerance. Writes WORKDIR/NAME-points.csv, NAME-sampled.csv and NAME-errors.json.
+//               picture?, exposure?, pictureSize?}
+//              or {name, type: "leak", grid, pvol, reference, xs, ys, zs, bound}], paths
+// relative to WORKDIR. Prints one line per case and exits 1 when a median or max relative error
+// exceeds its tolerance, or a leak its bound. Writes WORKDIR/NAME-*.csv and NAME-*.json.
 import { execFileSync } from 'node:child_process';
 import { existsSync, readFileSync, writeFileSync } from 'node:fs';
 import { createServer } from 'node:http';
@@ -95,15 +96,19 @@ function fragments(m) {
     return out;
 }
 
-function sample(c, frags) {
-    const points = join(work, `${c.name}-points.csv`);
-    const sampled = join(work, `${c.name}-sampled.csv`);
-    const lines = frags.map((f) => [...f.q, ...f.n].map((v) => v.toPrecision(9)).join(','));
+function sampleAt(pvol, name, samples) {
+    const points = join(work, `${name}-points.csv`);
+    const sampled = join(work, `${name}-sampled.csv`);
+    const lines = samples.map((s) => s.map((v) => v.toPrecision(9)).join(','));
     writeFileSync(points, ['x,y,z,nx,ny,nz', ...lines].join('\n') + '\n');
-    execFileSync(probekit, ['sample', join(work, c.pvol), '--points', points, '-o', sampled],
+    execFileSync(probekit, ['sample', join(work, pvol), '--points', points, '-o', sampled],
                  { stdio: ['ignore', 'ignore', 'inherit'] });
     return readFileSync(sampled, 'utf8').trim().split('\n').slice(1)
         .map((line) => line.split(',').slice(6, 9).map(Number));
+}
+
+function sample(c, frags) {
+    return sampleAt(c.pvol, c.name, frags.map((f) => [...f.q, ...f.n]));
 }
 
 // Relative error per pixel: the largest channel difference over the largest channel of
@@ -124,6 +129,46 @@ function compare(m, frags, expected) {
              p99: percentile(sorted, 0.99), max: sorted[sorted.length - 1] };
 }
 
+const total = (rows) => rows.reduce((sum, e) => sum + e[0] + e[1] + e[2], 0);
+
+// A leak case (tests/bake/test_leak.cpp's figure): points on the dark side of a thin wall, the
+// six axis normals; sum of E over points, normals and channels against a path-traced
+// reference (the reference volume's probes sit at exactly those points). three.js lights a
+// surface at p from p + n spacing / 2, so its figure includes that offset.
+async function leak(page, c) {
+    const samples = [];
+    for (const x of c.xs) for (const y of c.ys) for (const z of c.zs)
+        for (const n of [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
+            samples.push([x, y, z, ...n]);
+    const reference = total(sampleAt(c.reference, `${c.name}-reference`, samples));
+    const grid = `/work/${c.grid}`;
+    const plain = await page.evaluate((o) => window.probekitEvaluate(o),
+                                      { grid, samples, visibility: false });
+    const visible = await page.evaluate((o) => window.probekitEvaluate(o),
+                                        { grid, samples, visibility: true });
+    // probekit's sampler at three.js's sample points: what the visibility chunk must give.
+    const header = JSON.parse(readFileSync(join(work, c.grid), 'utf8'));
+    const spacing = [0, 1, 2].map((a) => (header.bounds.max[a] - header.bounds.min[a]) /
+                                         header.resolution[a]);
+    const shifted = samples.map((s) => [0, 1, 2].map((a) => s[a] + 0.5 * s[3 + a] * spacing[a])
+                                                .concat(s.slice(3)));
+    const stats = { samples: samples.length, threePlain: total(plain) / reference,
+                    threeVisibility: total(visible) / reference,
+                    probekit: total(sampleAt(c.pvol, `${c.name}-probekit`, samples)) / reference,
+                    probekitAtThreePoints:
+                        total(sampleAt(c.pvol, `${c.name}-shifted`, shifted)) / reference };
+    writeFileSync(join(work, `${c.name}-leak.json`), JSON.stringify(stats, null, 2) + '\n');
+    // The chunk must also be probekit's sampler at three.js's points (rounding: 1e-3).
+    const ok = stats.threeVisibility <= c.bound &&
+               Math.abs(stats.threeVisibility / stats.probekitAtThreePoints - 1) <= 1e-3;
+    console.log(`${ok ? 'ok  ' : 'FAIL'} ${c.name}: leak (E / path reference, ${samples.length} ` +
+                `samples) three.js ${stats.threePlain.toFixed(2)}x, with the visibility chunk ` +
+                `${stats.threeVisibility.toFixed(3)}x (bound ${c.bound}); probekit sample ` +
+                `${stats.probekit.toFixed(2)}x at the points, ` +
+                `${stats.probekitAtThreePoints.toFixed(3)}x at three.js's sample points`);
+    return ok;
+}
+
 let failed = false;
 try {
     const page = await browser.newPage();
@@ -134,6 +179,10 @@ try {
     await page.goto(`${origin}/page.html`);
     await page.waitForFunction('window.probekitReady === true', { timeout: 30000 });
     for (const c of cases) {
+        if (c.type === 'leak') {
+            failed ||= !(await leak(page, c));
+            continue;
+        }
         const options = { ...c, grid: `/work/${c.grid}`, gltf: `/work/${c.gltf}` };
         const m = await page.evaluate((o) => window.probekitMeasure(o), options);
         const frags = fragments(m);

@@ -35,6 +35,29 @@ fi
 "$pk" export plain.pvol --format three -o plain.json -q
 "$pk" export vis.pvol --format three -o vis.json -q
 
+# Thin-wall leak (tests/bake/test_leak.cpp's figure through three.js): the bundled rooms split
+# by a 5 cm wall at x = 0, a probe plane 6 mm from its lit face (x = -0.03125, spacing 0.5 m),
+# and a path-traced reference: a corner-mode volume whose 64 probes are the dark-side points
+# (0.25-0.4 m beyond the wall, 0.9 m or more from the doorway).
+"$pk" scene thin-wall -o thin.gltf > /dev/null
+cat > thin-reference.json << 'EOF'
+{"method": "path", "seed": 7, "dering": false, "path": {"samples": 4096, "max_bounces": 64},
+ "environment": {"type": "black"},
+ "volumes": [{"name": "dark", "position": "corner", "resolution": [4, 4, 4],
+              "bounds": {"mode": "custom", "min": [0.275, 0.6, -1.5], "max": [0.425, 1.8, 0.3]},
+              "format": "float", "sh_order": 2}]}
+EOF
+cat > thin-bake.json << 'EOF'
+{"method": "path", "seed": 1, "path": {"samples": 512, "max_bounces": 64},
+ "environment": {"type": "black"},
+ "volumes": [{"name": "rooms", "position": "center", "resolution": [16, 8, 8],
+              "bounds": {"mode": "custom", "min": [-3.78125, 0, -2], "max": [4.21875, 4, 2]},
+              "format": "half", "sh_order": 2}]}
+EOF
+"$pk" bake thin.gltf -o thin-reference.pvol --config thin-reference.json -q
+"$pk" bake thin.gltf -o thin.pvol --config thin-bake.json -q
+"$pk" export thin.pvol --format three -o thin.json -q
+
 picture=""
 if [ "${PROBEKIT_THREE_PICTURE:-0}" = 1 ]; then
     picture='"picture": "docs/images/three-cornell.png", "exposure": 1.6, "pictureSize": 320,'
@@ -50,6 +73,9 @@ cases="[
   {\"name\": \"plain\", \"pvol\": \"plain.pvol\", \"grid\": \"plain.json\", \"visibility\": false,
    $view, \"median\": 1e-4, \"max\": 5e-3},
   {\"name\": \"visibility\", \"pvol\": \"vis.pvol\", \"grid\": \"vis.json\", \"visibility\": true,
-   $picture $view, \"median\": 1e-4, \"max\": 5e-3}
+   $picture $view, \"median\": 1e-4, \"max\": 5e-3},
+  {\"name\": \"leak\", \"type\": \"leak\", \"grid\": \"thin.json\", \"pvol\": \"thin.pvol\",
+   \"reference\": \"thin-reference.pvol\", \"xs\": [0.275, 0.325, 0.375, 0.425],
+   \"ys\": [0.6, 1.0, 1.4, 1.8], \"zs\": [-1.5, -0.9, -0.3, 0.3], \"bound\": 1.5}
 ]"
 node "$repo/tests/engines/three_chromium.mjs" "$repo" "$work" "$pk" "$cases"
