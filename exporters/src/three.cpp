@@ -190,6 +190,10 @@ std::vector<uint8_t> bytesOf(const std::string& s) {
 
 Result<ExportResult> exportThree(const Volume& volume, const ThreeOptions& options,
                                  const std::filesystem::path& out) {
+    if (out.extension() == ".bin")
+        return Error{ErrorCode::InvalidArgument,
+                     out.string() + ": the header cannot be named .bin (its data goes there); "
+                                    "name it OUT.json"};
     Result<Resampled> dense = denseAxisAligned(volume, options.resolution);
     if (!dense)
         return dense.error();

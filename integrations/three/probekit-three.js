@@ -65,9 +65,12 @@ function visibilityTexture(vis, bin) {
 export function createProbekitGrid(header, bin, { GridClass = LightProbeGridWebGL } = {}) {
     if (header.format !== FORMAT || header.version !== 1)
         throw new Error(`probekit-three: not a version 1 ${FORMAT} header`);
-    if (bin.byteLength < header.atlas.byteLength)
-        throw new Error(`probekit-three: ${header.atlas.file} holds ${bin.byteLength} bytes, ` +
-                        `the header wants ${header.atlas.byteLength}`);
+    for (const part of [header.atlas, header.visibility]) {
+        const end = part ? (part.byteOffset ?? 0) + part.byteLength : 0;
+        if (bin.byteLength < end)
+            throw new Error(`probekit-three: ${header.atlas.file} holds ${bin.byteLength} ` +
+                            `bytes, the header wants ${end}`);
+    }
     const min = new Vector3().fromArray(header.bounds.min);
     const max = new Vector3().fromArray(header.bounds.max);
     const size = new Vector3().subVectors(max, min);

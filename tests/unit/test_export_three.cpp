@@ -361,6 +361,13 @@ TEST(ExportThree, HalfOverflowFailsAndSuggestsFloat) {
     EXPECT_TRUE(exporters::exportThree(v.value(), {glm::uvec3(0), false}, "grid.json").ok());
 }
 
+TEST(ExportThree, RefusesAHeaderNamedLikeItsData) {
+    const Result<exporters::ExportResult> r =
+        exporters::exportThree(denseVolume(specOf(grid::PositionMode::Center)), {}, "grid.bin");
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.error().message.find("OUT.json"), std::string::npos) << r.error().message;
+}
+
 TEST(ExportThree, VisibilityTextureReproducesTheSamplersWeights) {
     // Walls close to some probes on some half-axes, clear elsewhere: taps are hidden in places.
     for (grid::PositionMode mode : {grid::PositionMode::Center, grid::PositionMode::Corner}) {
