@@ -11,6 +11,9 @@ set -euo pipefail
 # libopenmpi-dev and openmpi-bin: distributed bakes (mpirun -np N probekit bake,
 # docs/baking.md#distributed-bakes) and their test; optional to the build, which leaves MPI out
 # without them.
+# chromium and nodejs: the engine tests (ctest -L engines, tests/engines) drive three.js in
+# headless Chromium with the npm packages pinned in integrations/package-lock.json. npm only
+# when no npm command exists: NodeSource's nodejs bundles npm and conflicts with Debian's.
 
 packages=(
     build-essential cmake ninja-build pkg-config git clang-format
@@ -21,7 +24,9 @@ packages=(
     clang-14 libclang-rt-14-dev
     libopenmpi-dev openmpi-bin
     python3 python3-matplotlib python3-numpy hyperfine
+    chromium nodejs
 )
+command -v npm > /dev/null || packages+=(npm)
 
 missing=()
 for p in "${packages[@]}"; do
@@ -32,10 +37,22 @@ done
 
 if ((${#missing[@]} == 0)); then
     echo "install-deps: all ${#packages[@]} packages present"
-    exit 0
+else
+    echo "install-deps: installing ${missing[*]}"
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -qq
+    apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
 
-echo "install-deps: installing ${missing[*]}"
-export DEBIAN_FRONTEND=noninteractive
-apt-get update -qq
-apt-get install -y -qq --no-install-recommends "${missing[@]}"
+# The integrations' npm packages, exactly as locked; again only when node_modules is missing or
+# was installed from another lock.
+integrations="$(cd "$(dirname "$0")/.." && pwd)/integrations"
+stamp="$integrations/node_modules/.probekit-lock.sha256"
+lock_sum=$(sha256sum "$integrations/package-lock.json" | cut -d' ' -f1)
+if [ "$(cat "$stamp" 2>/dev/null)" != "$lock_sum" ]; then
+    echo "install-deps: npm ci in integrations/"
+    npm ci --prefix "$integrations" --no-audit --no-fund --silent
+    echo "$lock_sum" > "$stamp"
+else
+    echo "install-deps: integrations/node_modules matches package-lock.json"
+fi

@@ -56,6 +56,16 @@ expect 0 "bricked, 2x2x2 level-0 bricks" -- "$pk" info bricked.pvol
 expect 0 "valid \(1 volume" -- "$pk" validate bricked.pvol
 printf 'x,y,z,nx,ny,nz\n0.2,0.2,0.2,0,1,0\n' >points.csv
 expect 0 "^x,y,z,nx,ny,nz,r,g,b" -- "$pk" sample bricked.pvol --points points.csv
+# probekit export --format three (docs/engines.md#threejs): a header and its data beside it;
+# bricked volumes are resampled and say by how much.
+expect 0 "dense 2x2x2 grid exported as it is" -- \
+    "$pk" export small.pvol --format three -o small-three.json
+check "three.js header and data" test -s small-three.json -a -s small-three.bin
+expect 0 "resampled to a dense 4x4x4 grid: irradiance error rel RMS" -- \
+    "$pk" export bricked.pvol --format three -o bricked-three.json --resolution 4,4,4
+expect 1 "small.bin: the header cannot be named .bin" -- \
+    "$pk" export small.pvol --format three -o small.bin
+check "no output after a refused export" test ! -e small.bin
 # --verify skips points inside geometry and says how many of those asked for it used.
 # --target-error fails when its error is over 1.5x the target: without --verify the prediction
 # decides. On the Cornell box at 0.2 it over-predicts (0.60; --verify measures about 0.1), so

@@ -17,7 +17,10 @@ struct ThreeOptions {
     bool half = true; // atlas texels as binary16 (else float32)
 };
 
-// Files OUT.json (header) and OUT.bin (atlas) for `out` = OUT.json.
+// Files OUT.json (header) and OUT.bin (the SH atlas, then the visibility texture when the
+// exported grid has visibility) for `out` = OUT.json; integrations/three/probekit-three.js reads
+// them. Fails when a coefficient exceeds half range with options.half (export as float), when
+// `out` ends in .bin, and as denseAxisAligned fails.
 Result<ExportResult> exportThree(const Volume& volume, const ThreeOptions& options,
                                  const std::filesystem::path& out);
 
