@@ -1,13 +1,14 @@
 #!/usr/bin/env python3
 """Check the repository's documentation links.
 
-For every *.md file under the root (not in build*/ folders, .git or tests/fixtures/), every
-relative link target must exist, and a '#anchor' must name a heading of the target file, by
-GitHub's anchor rules (lower case, punctuation other than '-' and '_' removed, spaces to '-',
-'-1', '-2', ... for repeated headings). For every source file under baker, runtime, formats,
-tools, tests, shaders, fuzz and examples, every citation of the form docs/<page>.md#<anchor>,
-README.md#<anchor>, ARCHITECTURE.md#<anchor> or formats/CONVENTIONS.md#<anchor> (paths from the
-root; the anchor is optional) must resolve the same way.
+For every *.md file under the root (not in build*/ folders, .git, node_modules or tests/fixtures/),
+every relative link target must exist, and a '#anchor' must name a heading of the target file, by
+GitHub's anchor rules (lower case, punctuation other than '-' and '_' removed, spaces to '-', '-1',
+'-2', ... for repeated headings). For every source file under baker, runtime, formats, tools,
+tests, shaders, fuzz, examples, exporters, viewer and integrations, every citation of the form
+docs/<page>.md#<anchor>, README.md#<anchor>, ARCHITECTURE.md#<anchor> or
+formats/CONVENTIONS.md#<anchor> (paths from the root; the anchor is optional) must resolve the same
+way.
 
 Usage: check-doc-links.py [--root DIR]. Prints each broken link as 'file:line: ...' and exits 1;
 otherwise prints how many links and citations it checked and exits 0. Standard library only.
@@ -19,7 +20,8 @@ import re
 import sys
 import urllib.parse
 
-SOURCE_DIRS = ("baker", "runtime", "formats", "tools", "tests", "shaders", "fuzz", "examples")
+SOURCE_DIRS = ("baker", "runtime", "formats", "tools", "tests", "shaders", "fuzz", "examples",
+               "exporters", "viewer", "integrations")
 # Paths under the root that hold deliberately broken examples (the negative test's fixture).
 EXCLUDED = ("tests/fixtures",)
 
@@ -46,7 +48,7 @@ def github_anchor(text):
 def excluded(rel):
     rel = rel.replace(os.sep, "/")
     parts = rel.split("/")
-    if any(p == ".git" or p.startswith("build") for p in parts[:-1]):
+    if any(p in (".git", "node_modules") or p.startswith("build") for p in parts[:-1]):
         return True
     return any(rel == e or rel.startswith(e + "/") for e in EXCLUDED)
 

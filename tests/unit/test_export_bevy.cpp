@@ -352,7 +352,7 @@ TEST(ExportBevy, LeastSquaresIsAMinimum) {
     }
 }
 
-// The figures docs/engines-bevy.part.md quotes: least squares against point evaluation on
+// The figures docs/engines.md#bevy quotes: least squares against point evaluation on
 // random L2 probes and on a deringed lone light (the most directional probe a bake stores).
 TEST(ExportBevy, LeastSquaresBeatsPointEvaluation) {
     std::mt19937 rng(11);
