@@ -140,10 +140,100 @@ TEST(UnitScale, AnImplausibleSizeWarnsAndNamesTheScales) {
     ASSERT_FALSE(huge.value().warnings.empty());
     const std::string& w = huge.value().warnings.back();
     EXPECT_NE(w.find("559.2 m across"), std::string::npos) << w;
-    EXPECT_NE(w.find("--scale 0.01 makes it 5.592 m"), std::string::npos) << w;
-    EXPECT_NE(w.find("--scale 0.001 makes it 0.5592 m"), std::string::npos) << w;
+    // Its walls are 548.8 units high: a storey only in centimetres (5.49 m; in inches 13.9 m,
+    // in millimetres 0.55 m), so centimetres alone are named.
+    EXPECT_NE(w.find("walls are 549 m high"), std::string::npos) << w;
+    EXPECT_NE(w.find("--scale 0.01 makes it 5.592 m with 5.49 m walls"), std::string::npos) << w;
+    EXPECT_EQ(w.find("--scale 0.0254"), std::string::npos) << w;
+    EXPECT_EQ(w.find("--scale 0.001"), std::string::npos) << w;
     const Scene metres = test::loadOrFail(dir / "box.gltf");
     EXPECT_TRUE(implausibleSizeWarning(metres, "box.gltf").empty());
+}
+
+// Appends the closed box [lo, hi] (12 triangles) to `s`.
+void addBox(Scene& s, glm::vec3 lo, glm::vec3 hi) {
+    const uint32_t base = uint32_t(s.positions.size());
+    for (int i = 0; i < 8; ++i) {
+        s.positions.emplace_back(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z);
+    }
+    const glm::uvec3 tris[] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                               {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+    for (const glm::uvec3& t : tris) {
+        s.triangles.push_back(t + base);
+    }
+    s.uvs.resize(s.positions.size(), glm::vec2(0.0f));
+    s.triangleMaterial.resize(s.triangles.size(), 0);
+    s.triangleNode.resize(s.triangles.size(), -1);
+    s.materials.resize(1);
+    s.bounds = s.triangles.size() == 12
+                   ? grid::Aabb{lo, hi}
+                   : grid::Aabb{glm::min(s.bounds.min, lo), glm::max(s.bounds.max, hi)};
+}
+
+// A level 120 m x 40 m in metres: 12 x 4 rooms of 10 m x 3 m x 10 m, a 20 m tower and a flight
+// of ten 0.2 m steps.
+Scene levelInMetres() {
+    Scene s;
+    for (int i = 0; i < 12; ++i) {
+        for (int j = 0; j < 4; ++j) {
+            addBox(s, glm::vec3(10.0f * i, 0.0f, 10.0f * j),
+                   glm::vec3(10.0f * i + 10.0f, 3.0f, 10.0f * j + 10.0f));
+        }
+    }
+    addBox(s, glm::vec3(50.0f, 3.0f, 15.0f), glm::vec3(52.0f, 23.0f, 17.0f));
+    for (int k = 0; k < 10; ++k) {
+        addBox(s, glm::vec3(0.3f * k, 0.2f * k, 41.0f),
+               glm::vec3(0.3f * k + 0.3f, 0.2f * k + 0.2f, 43.0f));
+    }
+    return s;
+}
+
+// The storey rule: a 120 m level of 3 m rooms is plausible in metres; the same level in inches
+// or centimetres is not, and the warning names the one scale that makes its rooms 3 m high.
+TEST(UnitScale, ALevelIsJudgedByItsStoreyHeightNotItsExtent) {
+    const Scene metres = levelInMetres();
+    EXPECT_FLOAT_EQ(metres.bounds.size().x, 120.0f);
+    EXPECT_TRUE(implausibleSizeWarning(metres, "level.gltf").empty())
+        << implausibleSizeWarning(metres, "level.gltf");
+
+    Scene inches = levelInMetres();
+    applyUnitScale(inches, 1.0f / 0.0254f); // the file as an editor in inches writes it
+    const std::string wi = implausibleSizeWarning(inches, "level.gltf");
+    EXPECT_NE(wi.find("4724 m across"), std::string::npos) << wi;
+    EXPECT_NE(wi.find("walls are 118 m high"), std::string::npos) << wi;
+    EXPECT_NE(wi.find("in inches, --scale 0.0254 makes it 120 m with 3 m walls"), std::string::npos)
+        << wi;
+    EXPECT_EQ(wi.find("--scale 0.01 "), std::string::npos) << wi;  // 1.18 m walls
+    EXPECT_EQ(wi.find("--scale 0.001 "), std::string::npos) << wi; // 0.118 m walls
+
+    Scene cm = levelInMetres();
+    applyUnitScale(cm, 100.0f);
+    const std::string wc = implausibleSizeWarning(cm, "level.gltf");
+    EXPECT_NE(wc.find("in centimetres, --scale 0.01 makes it 120 m with 3 m walls"),
+              std::string::npos)
+        << wc;
+    EXPECT_EQ(wc.find("--scale 0.0254"), std::string::npos) << wc; // 7.62 m walls
+}
+
+// One room exported in centimetres, 500 units high: warned, centimetres named (5 m walls).
+// A scene with no walls at all over 100 m is warned with every scale, as before.
+TEST(UnitScale, ARoomInCentimetresAndAWalllessSceneStillWarn) {
+    Scene room;
+    addBox(room, glm::vec3(0.0f), glm::vec3(800.0f, 500.0f, 600.0f));
+    const std::string w = implausibleSizeWarning(room, "room.gltf");
+    EXPECT_NE(w.find("--scale 0.01 makes it 8 m with 5 m walls"), std::string::npos) << w;
+    EXPECT_EQ(w.find("--scale 0.0254"), std::string::npos) << w; // 12.7 m walls
+
+    Scene ground;
+    ground.positions = {{0, 0, 0}, {500, 0, 0}, {0, 0, 500}};
+    ground.triangles = {{0, 2, 1}};
+    ground.materials.resize(1);
+    ground.bounds = {glm::vec3(0.0f), glm::vec3(500.0f, 0.0f, 500.0f)};
+    const std::string g = implausibleSizeWarning(ground, "ground.gltf");
+    EXPECT_NE(g.find("it has no walls"), std::string::npos) << g;
+    EXPECT_NE(g.find("--scale 0.01 makes it 5 m"), std::string::npos) << g;
+    EXPECT_NE(g.find("--scale 0.0254 makes it 12.7 m"), std::string::npos) << g;
+    EXPECT_NE(g.find("--scale 0.001 makes it 0.5 m"), std::string::npos) << g;
 }
 
 TEST(UnitScale, BakeRefusesAConfigScaleTheSceneWasNotLoadedWith) {

@@ -139,17 +139,22 @@ struct LoadOptions {
     std::vector<std::filesystem::path> assetRoots;
 };
 
-// A scene whose longest side (after the scale) is beyond these is probably not in metres:
-// loadGltf then warns and names the scales that would make it plausible.
+// Units: a scene is plausible in metres when its longest side (after the scale) is within
+// kPlausibleSceneMinMetres..kPlausibleSceneMaxMetres, or when its storey height (the median
+// height of its vertical surfaces: implausibleSizeWarning, scene.cpp) is within
+// kPlausibleStoreyMinMetres..kPlausibleStoreyMaxMetres, whatever its extent; loadGltf warns
+// otherwise and names the scales that would make it plausible.
 constexpr float kPlausibleSceneMaxMetres = 100.0f; // a large building; more is a cm/mm export
 constexpr float kPlausibleSceneMinMetres = 0.01f;  // a coin; less is an export in kilometres
+constexpr float kPlausibleStoreyMinMetres = 2.0f;  // a low room or a door
+constexpr float kPlausibleStoreyMaxMetres = 6.0f;  // a hall's storey
 
 // Scales the scene's lengths by `scale` (metres per unit, > 0) and records it in unitScale.
 void applyUnitScale(Scene& scene, float scale);
 
-// The warning loadGltf gives for a scene whose size is implausible in metres (empty when its
-// longest side lies within kPlausibleSceneMinMetres..kPlausibleSceneMaxMetres, or it has no
-// geometry), naming the --scale values that would bring it within.
+// The warning loadGltf gives for a scene whose size is implausible in metres (empty when it is
+// plausible by the rule above, or it has no geometry), naming the --scale values (0.01, 0.0254,
+// 0.001 over 100 m; 1000 under 1 cm) that would make it plausible.
 std::string implausibleSizeWarning(const Scene& scene, const std::string& file);
 
 // Loads a .gltf or .glb (embedded or external buffers and images), glTF 2.x only. Triangle
