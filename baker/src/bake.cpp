@@ -502,15 +502,20 @@ VplConfig resolveVplConfig(const Scene& scene, const std::vector<VolumeDesc>& vo
     return v;
 }
 
+namespace {
+// The probes a volume's plan holds: its grid's, or for a bricked volume its level 0 (3 probes
+// per brick and axis, plus one); refinement is bounded by the budget afterwards.
+uint64_t plannedProbes(const VolumeDesc& d) {
+    const glm::uvec3 lattice = d.grid.resolution() * brick::kBrickCells + 1u;
+    return d.layout == VolumeLayout::Bricked ? uint64_t(lattice.x) * lattice.y * lattice.z
+                                             : d.grid.probeCount();
+}
+} // namespace
+
 uint64_t estimateBakeMemory(const std::vector<VolumeDesc>& volumes) {
     uint64_t total = 0;
     for (const VolumeDesc& d : volumes) {
-        // Bricked: level 0 (3 probes per brick and axis, plus one); refinement is bounded by
-        // the budget afterwards.
-        const glm::uvec3 lattice = d.grid.resolution() * brick::kBrickCells + 1u;
-        const uint64_t probes = d.layout == VolumeLayout::Bricked
-                                    ? uint64_t(lattice.x) * lattice.y * lattice.z
-                                    : d.grid.probeCount();
+        const uint64_t probes = plannedProbes(d);
         const uint64_t texels = uint64_t(planeCount(d.shOrder)) * 4 * 4; // float staging
         total += probes *
                  (sizeof(sh::ShRgb) + 1 + texels + texels / 2 * (d.storage == Storage::Float16));
@@ -533,6 +538,9 @@ struct BakeRun {
     // Grows as batches are queued: a bricked volume's probes are known only as it refines.
     std::atomic<uint64_t> totalProbes{0};
     std::atomic<uint64_t> probesDone{0};
+    // The planned probes of the volumes not started yet: the progress's total covers them, so
+    // its ETA is the whole bake's (BakeProgress).
+    std::atomic<uint64_t> plannedAhead{0};
     std::atomic<uint64_t> rays{0};
     std::atomic<uint64_t> cutTotal{0};
     std::atomic<uint64_t> samplesTotal{0}; // directions the path-traced parts took
@@ -546,7 +554,8 @@ struct BakeRun {
     }
     void report() const {
         if (options.progress) {
-            options.progress(BakeProgress{probesDone.load(), totalProbes.load(), elapsedSeconds()});
+            options.progress(BakeProgress{
+                probesDone.load(), totalProbes.load() + plannedAhead.load(), elapsedSeconds()});
         }
     }
 };
@@ -1005,7 +1014,11 @@ Result<BakeResult> bakeScene(const Scene& scene, const BakeConfig& config,
     }
     const MethodState method = prepareMethod(run, descs, result.stats);
     const std::vector<VolumeConfig> volume_configs = volumeConfigs(config);
+    for (const VolumeDesc& d : descs) {
+        run.plannedAhead.fetch_add(plannedProbes(d));
+    }
     for (uint32_t vi = 0; vi < descs.size(); ++vi) {
+        run.plannedAhead.fetch_sub(plannedProbes(descs[vi]));
         Result<Volume> volume = bakeVolume(run, method, descs[vi], vi, volume_configs[vi], result);
         if (!volume) {
             return volume.error();

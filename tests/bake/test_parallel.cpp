@@ -103,3 +103,30 @@ TEST(BakeProgressReports, FromTheCallingThreadEndingAtTheTotalWithTheSameOutput)
     EXPECT_EQ(reports.back().probesTotal, a.value().stats.probes);
     test::expectSameFileButTiming(a.value(), b.value());
 }
+
+// The total covers the whole bake from its first report: the second volume's planned probes
+// are counted while the first bakes, so the ETA is the bake's, not the first volume's.
+TEST(BakeProgressReports, TheTotalCoversEveryVolumeFromTheFirstReport) {
+    const Scene scene = test::generatedScene("cornell");
+    BakeConfig c;
+    c.path.samples = 16;
+    VolumeConfig first;
+    first.name = "first";
+    first.resolution = glm::uvec3(4, 4, 2); // 32 probes
+    VolumeConfig second;
+    second.name = "second";
+    second.resolution = glm::uvec3(2, 2, 2); // 8 probes
+    c.volumes = {first, second};
+    std::vector<BakeProgress> reports;
+    BakeOptions options;
+    options.threads = 2;
+    options.progress = [&](const BakeProgress& p) { reports.push_back(p); };
+    Result<BakeResult> r = bake(scene, c, options);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    ASSERT_FALSE(reports.empty());
+    EXPECT_EQ(reports.front().probesTotal, 40u);
+    for (size_t i = 1; i < reports.size(); ++i) {
+        EXPECT_GE(reports[i].probesTotal, reports[i - 1].probesTotal) << i;
+    }
+    EXPECT_EQ(reports.back().probesTotal, r.value().stats.probes);
+}

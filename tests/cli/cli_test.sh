@@ -150,6 +150,17 @@ expect 0 "wrote lit2.pvol" -- "$pk" bake overcast.gltf -o lit2.pvol --samples 8 
 expect 0 "warning: overcast.gltf: the scene emits no light" -- "$pk" bake overcast.gltf \
     -o black.pvol --resolution 2,2,2 --samples 8 --allow-unlit --report black.json
 check "the report records the unlit warning" grep -q "emits no light" black.json
+# -q prints errors only: the same bake's warning is not printed, but --report keeps it.
+check "a -q bake succeeds" bash -c '"$0" bake overcast.gltf -o quiet.pvol --resolution 2,2,2 \
+    --samples 8 --allow-unlit -q --report quiet.json >quiet.out 2>&1' "$pk"
+check "-q prints no warning" bash -c '! grep -qi warning quiet.out'
+check "-q keeps the warning in the report" grep -q "emits no light" quiet.json
+# Progress with stderr in a file (CI, batch farms): whole lines, no bar redrawn with \r.
+"$pk" bake overcast.gltf -o prog.pvol --resolution 8,8,8 --samples 16 --env 0.3,0.4,0.6 \
+    >/dev/null 2>prog.err
+check "progress lines in a log" grep -qE "^  progress: [0-9.]+%  [0-9]+/[0-9]+ probes  .*ETA" \
+    prog.err
+check "no carriage return in a log" bash -c "! grep -q \$'\\r' prog.err"
 
 # --env: numbers that are not three of them are not a file name.
 expect 1 "--env: expected R,G,B \(three numbers\) or an image file" -- \

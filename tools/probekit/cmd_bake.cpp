@@ -3,10 +3,12 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <unistd.h>
@@ -110,16 +112,48 @@ Result<baker::EnvironmentConfig> parseEnvFlag(const std::string& value) {
     return e;
 }
 
-void printProgress(const baker::BakeProgress& p) {
+// The fraction done and the seconds left at the rate so far (p.probesTotal covers the whole
+// bake: BakeProgress).
+std::pair<double, double> progressFraction(const baker::BakeProgress& p) {
     const double fraction = p.probesTotal ? double(p.probesDone) / double(p.probesTotal) : 1.0;
+    const double eta = fraction > 0 ? p.elapsedSeconds * (1.0 - fraction) / fraction : 0.0;
+    return {fraction, eta};
+}
+
+// On a terminal: one line redrawn in place.
+void printProgress(const baker::BakeProgress& p) {
+    const auto [fraction, eta] = progressFraction(p);
     const int width = 30;
     const int filled = int(fraction * width);
-    const double eta = fraction > 0 ? p.elapsedSeconds * (1.0 - fraction) / fraction : 0.0;
     std::fprintf(stderr, "\r  [%.*s%*s] %5.1f%%  %llu/%llu probes  %.1f s, ETA %.1f s ", filled,
                  "==============================", width - filled, "", fraction * 100.0,
                  static_cast<unsigned long long>(p.probesDone),
                  static_cast<unsigned long long>(p.probesTotal), p.elapsedSeconds, eta);
     std::fflush(stderr);
+}
+
+// When stderr is not a terminal (a log file, CI, a batch farm): whole lines, one each time a
+// further tenth of the work is done or kLogProgressSeconds have passed since the last line,
+// whichever comes first: at most about ten lines for the work plus one per interval.
+constexpr double kLogProgressSeconds = 10.0;
+
+std::function<void(const baker::BakeProgress&)> logProgress() {
+    return [last_fraction = 0.0, last_seconds = 0.0](const baker::BakeProgress& p) mutable {
+        const auto [fraction, eta] = progressFraction(p);
+        // The total grows as refinement queues probes: the tenths count from the new fraction.
+        last_fraction = std::min(last_fraction, fraction);
+        const bool end = p.probesDone >= p.probesTotal && fraction > last_fraction;
+        if (!end && fraction < last_fraction + 0.1 &&
+            p.elapsedSeconds < last_seconds + kLogProgressSeconds) {
+            return;
+        }
+        last_fraction = fraction;
+        last_seconds = p.elapsedSeconds;
+        std::fprintf(stderr, "  progress: %.1f%%  %llu/%llu probes  %.1f s, ETA %.1f s\n",
+                     fraction * 100.0, static_cast<unsigned long long>(p.probesDone),
+                     static_cast<unsigned long long>(p.probesTotal), p.elapsedSeconds, eta);
+        std::fflush(stderr);
+    };
 }
 
 // The config file (or the defaults) with the flags applied over it.
@@ -166,6 +200,7 @@ Result<baker::BakeConfig> configFromOptions(const BakeOptionsCli& o) {
     return config;
 }
 
+// The loader's warnings are printed unless -q (they are in --report's warnings either way).
 Result<baker::Scene> loadScene(const BakeOptionsCli& o, const baker::BakeConfig& config) {
     baker::LoadOptions load_options;
     load_options.sceneIndex = o.sceneIndex;
@@ -181,7 +216,7 @@ Result<baker::Scene> loadScene(const BakeOptionsCli& o, const baker::BakeConfig&
         return environment.error();
     }
     scene.value().environment = std::move(environment).value();
-    for (const std::string& w : scene.value().warnings) {
+    for (const std::string& w : o.quiet ? std::vector<std::string>{} : scene.value().warnings) {
         printError("bake", "warning: " + w);
     }
     return scene;
@@ -482,12 +517,12 @@ Result<baker::BakeResult> bakeWithProgress(const BakeOptionsCli& o, const baker:
     if (DistributedBake* job = currentJob()) {
         options.distributor = job->distributor();
     }
-    const bool show_progress = !o.quiet && isatty(STDERR_FILENO);
-    if (show_progress) {
-        options.progress = printProgress;
+    const bool terminal = isatty(STDERR_FILENO);
+    if (!o.quiet) {
+        options.progress = terminal ? printProgress : logProgress();
     }
     Result<baker::BakeResult> result = baker::bake(scene, config, options);
-    if (show_progress) {
+    if (!o.quiet && terminal) {
         std::fprintf(stderr, "\n");
     }
     return result;
@@ -648,7 +683,7 @@ int runBakeProcess(const BakeOptionsCli& all, const DistributedBake* job) {
     // What placing the volumes changed from what was asked, before the bake starts; the bake
     // repeats these in its warnings, which are not printed twice.
     const std::vector<std::string>& notes = plan.value().notes;
-    if (rank0) {
+    if (rank0 && !o.quiet) {
         printNewWarnings(notes, {});
     }
     Result<baker::BakeResult> result = bakeWithProgress(o, scene.value(), config.value());
@@ -658,7 +693,9 @@ int runBakeProcess(const BakeOptionsCli& all, const DistributedBake* job) {
     if (!rank0) {
         return kExitOk;
     }
-    printNewWarnings(result.value().warnings, notes);
+    if (!o.quiet) {
+        printNewWarnings(result.value().warnings, notes);
+    }
     return finishBake({o, scene.value(), config.value(), result.value(), choice.value()}, job);
 }
 
@@ -718,7 +755,9 @@ void addBakeCommand(CLI::App& app, Command& selected) {
     cmd->add_option("--scene", o->sceneIndex, "glTF scene index (default: the file's default)");
     addAssetRootOption(cmd, o->assetRoots);
     cmd->add_option("--report", o->report, "write a JSON report of the bake");
-    cmd->add_flag("-q,--quiet", o->quiet, "print nothing but errors");
+    cmd->add_flag("-q,--quiet", o->quiet,
+                  "print nothing but errors: no progress, summary or warnings (--report still "
+                  "records the warnings)");
     cmd->add_flag("--allow-unlit", o->allowUnlit,
                   "bake a scene that emits no light (no light, no emissive material, black "
                   "environment) with a warning instead of failing: every probe is zero");

@@ -55,6 +55,10 @@ VplConfig resolveVplConfig(const Scene& scene, const std::vector<VolumeDesc>& vo
 // Bytes a bake of these volumes holds at its peak (per-probe SH in float plus output texels).
 uint64_t estimateBakeMemory(const std::vector<VolumeDesc>& volumes);
 
+// How far a bake is. probesTotal covers the whole bake, not only the volume or brick level
+// under way: the probes queued so far plus, for each volume not yet started, the probes its
+// plan holds (a dense grid's probes; a bricked volume's level 0, its refinement unknown until
+// it runs). It grows when relocation or refinement adds probes.
 struct BakeProgress {
     uint64_t probesDone = 0;
     uint64_t probesTotal = 0;
