@@ -140,12 +140,12 @@ TEST(UnitScale, AnImplausibleSizeWarnsAndNamesTheScales) {
     ASSERT_FALSE(huge.value().warnings.empty());
     const std::string& w = huge.value().warnings.back();
     EXPECT_NE(w.find("559.2 m across"), std::string::npos) << w;
-    // Its walls are 548.8 units high: a storey only in centimetres (5.49 m; in inches 13.9 m,
-    // in millimetres 0.55 m), so centimetres alone are named.
-    EXPECT_NE(w.find("walls are 549 m high"), std::string::npos) << w;
-    EXPECT_NE(w.find("--scale 0.01 makes it 5.592 m with 5.49 m walls"), std::string::npos) << w;
-    EXPECT_EQ(w.find("--scale 0.0254"), std::string::npos) << w;
-    EXPECT_EQ(w.find("--scale 0.001"), std::string::npos) << w;
+    // Not a level: its floor, blocks and light give no one storey height, so the warning
+    // names every scale with the storeys each would make.
+    EXPECT_NE(w.find("storeys are "), std::string::npos) << w;
+    EXPECT_NE(w.find("in centimetres, --scale 0.01 makes it 5.592 m"), std::string::npos) << w;
+    EXPECT_NE(w.find("in inches, --scale 0.0254 makes it 14.2 m"), std::string::npos) << w;
+    EXPECT_NE(w.find("in millimetres, --scale 0.001 makes it 0.5592 m"), std::string::npos) << w;
     const Scene metres = test::loadOrFail(dir / "box.gltf");
     EXPECT_TRUE(implausibleSizeWarning(metres, "box.gltf").empty());
 }
@@ -189,7 +189,7 @@ Scene levelInMetres() {
 }
 
 // The storey rule: a 120 m level of 3 m rooms is plausible in metres; the same level in inches
-// or centimetres is not, and the warning names the one scale that makes its rooms 3 m high.
+// or centimetres is not, and the warning names first the scale that makes its rooms 3 m high.
 TEST(UnitScale, ALevelIsJudgedByItsStoreyHeightNotItsExtent) {
     const Scene metres = levelInMetres();
     EXPECT_FLOAT_EQ(metres.bounds.size().x, 120.0f);
@@ -200,29 +200,31 @@ TEST(UnitScale, ALevelIsJudgedByItsStoreyHeightNotItsExtent) {
     applyUnitScale(inches, 1.0f / 0.0254f); // the file as an editor in inches writes it
     const std::string wi = implausibleSizeWarning(inches, "level.gltf");
     EXPECT_NE(wi.find("4724 m across"), std::string::npos) << wi;
-    EXPECT_NE(wi.find("walls are 118 m high"), std::string::npos) << wi;
-    EXPECT_NE(wi.find("in inches, --scale 0.0254 makes it 120 m with 3 m walls"), std::string::npos)
+    EXPECT_NE(wi.find("storeys are 118 m high"), std::string::npos) << wi;
+    // Inches first (3 m storeys), then centimetres (1.18 m) and millimetres (0.118 m).
+    EXPECT_NE(wi.find("if the file is in inches, --scale 0.0254 makes it 120 m with 3 m storeys; "
+                      "in centimetres"),
+              std::string::npos)
         << wi;
-    EXPECT_EQ(wi.find("--scale 0.01 "), std::string::npos) << wi;  // 1.18 m walls
-    EXPECT_EQ(wi.find("--scale 0.001 "), std::string::npos) << wi; // 0.118 m walls
 
     Scene cm = levelInMetres();
     applyUnitScale(cm, 100.0f);
     const std::string wc = implausibleSizeWarning(cm, "level.gltf");
-    EXPECT_NE(wc.find("in centimetres, --scale 0.01 makes it 120 m with 3 m walls"),
+    EXPECT_NE(wc.find("if the file is in centimetres, --scale 0.01 makes it 120 m with 3 m "
+                      "storeys; in inches"),
               std::string::npos)
         << wc;
-    EXPECT_EQ(wc.find("--scale 0.0254"), std::string::npos) << wc; // 7.62 m walls
 }
 
-// One room exported in centimetres, 500 units high: warned, centimetres named (5 m walls).
-// A scene with no walls at all over 100 m is warned with every scale, as before.
-TEST(UnitScale, ARoomInCentimetresAndAWalllessSceneStillWarn) {
+// One room exported in centimetres, 500 units high: warned, centimetres first (5 m storeys).
+// A scene with no ceiling at all over 100 m is warned with every scale, as before.
+TEST(UnitScale, ARoomInCentimetresAndAnOpenSceneStillWarn) {
     Scene room;
     addBox(room, glm::vec3(0.0f), glm::vec3(800.0f, 500.0f, 600.0f));
     const std::string w = implausibleSizeWarning(room, "room.gltf");
-    EXPECT_NE(w.find("--scale 0.01 makes it 8 m with 5 m walls"), std::string::npos) << w;
-    EXPECT_EQ(w.find("--scale 0.0254"), std::string::npos) << w; // 12.7 m walls
+    EXPECT_NE(w.find("if the file is in centimetres, --scale 0.01 makes it 8 m with 5 m storeys"),
+              std::string::npos)
+        << w;
 
     Scene ground;
     ground.positions = {{0, 0, 0}, {500, 0, 0}, {0, 0, 500}};
@@ -230,7 +232,7 @@ TEST(UnitScale, ARoomInCentimetresAndAWalllessSceneStillWarn) {
     ground.materials.resize(1);
     ground.bounds = {glm::vec3(0.0f), glm::vec3(500.0f, 0.0f, 500.0f)};
     const std::string g = implausibleSizeWarning(ground, "ground.gltf");
-    EXPECT_NE(g.find("it has no walls"), std::string::npos) << g;
+    EXPECT_NE(g.find("too few of its floors have a ceiling"), std::string::npos) << g;
     EXPECT_NE(g.find("--scale 0.01 makes it 5 m"), std::string::npos) << g;
     EXPECT_NE(g.find("--scale 0.0254 makes it 12.7 m"), std::string::npos) << g;
     EXPECT_NE(g.find("--scale 0.001 makes it 0.5 m"), std::string::npos) << g;

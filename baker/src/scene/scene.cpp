@@ -82,49 +82,95 @@ void applyUnitScale(Scene& scene, float scale) {
 }
 
 namespace {
-// A triangle is a wall (a vertical surface) when its face normal is within ~11.5 degrees of
-// horizontal.
-constexpr float kWallNormalY = 0.2f;
+// A triangle is a floor or a ceiling when its face normal is within ~18 degrees of vertical.
+constexpr float kFloorNormalY = 0.95f;
+// At most this many floors are tested (every k-th of them, in order), four rays each: cheap at
+// load (only scenes over kPlausibleSceneMaxMetres are measured), and the same every time.
+constexpr size_t kMaxStoreySamples = 256;
+// A storey is measured only when at least this share (by area) of the floors has a ceiling.
+constexpr double kMinRoofedShare = 0.25;
 
-// The scene's storey height, in metres: the area-weighted median of the vertical extent of its
-// walls (a wall made of two triangles spans its whole height; the risers of stairs and trims
-// are short but small in area). 0 when the scene has no walls. A wall tessellated into many
-// rows of triangles reads shorter than it is, so this only ever clears or narrows a warning.
-float storeyHeight(const Scene& scene) {
-    std::vector<std::pair<float, float>> walls; // (height, area)
-    double total = 0.0;
+// The distance straight up from `origin` to the nearest triangle above it (Moller-Trumbore,
+// every triangle), or +inf when none is.
+float distanceUp(const Scene& scene, glm::vec3 origin, float skip) {
+    float nearest = INFINITY;
     for (const glm::uvec3& t : scene.triangles) {
-        const glm::vec3 a = scene.positions[t.x], b = scene.positions[t.y],
-                        c = scene.positions[t.z];
-        const glm::vec3 n = glm::cross(b - a, c - a);
-        const float twice_area = glm::length(n);
-        if (!(twice_area > 0.0f) || std::abs(n.y) > kWallNormalY * twice_area) {
+        const glm::vec3 a = scene.positions[t.x];
+        const glm::vec3 e1 = scene.positions[t.y] - a, e2 = scene.positions[t.z] - a;
+        const glm::vec3 p = glm::cross(glm::vec3(0, 1, 0), e2);
+        const float det = glm::dot(e1, p);
+        if (std::abs(det) < 1e-20f) {
             continue;
         }
-        const float height = std::max({a.y, b.y, c.y}) - std::min({a.y, b.y, c.y});
-        walls.emplace_back(height, 0.5f * twice_area);
-        total += 0.5 * twice_area;
+        const glm::vec3 s = origin - a;
+        const float u = glm::dot(s, p) / det;
+        const glm::vec3 q = glm::cross(s, e1);
+        const float v = q.y / det;
+        const float dist = glm::dot(e2, q) / det;
+        if (u >= 0.0f && v >= 0.0f && u + v <= 1.0f && dist > skip && dist < nearest) {
+            nearest = dist;
+        }
     }
-    if (walls.empty()) {
+    return nearest;
+}
+
+// The scene's storey height, in metres: the area-weighted median distance from its floors
+// (horizontal triangles, either facing; four points on each) straight up to the next surface,
+// over the floors that have one. 0 when under kMinRoofedShare of the floor area has a ceiling
+// (an open yard, a terrain, an object on a ground plane). Tessellation does not change it.
+float storeyHeight(const Scene& scene) {
+    std::vector<uint32_t> floors;
+    for (uint32_t i = 0; i < scene.triangles.size(); ++i) {
+        const glm::uvec3 t = scene.triangles[i];
+        const glm::vec3 n = glm::cross(scene.positions[t.y] - scene.positions[t.x],
+                                       scene.positions[t.z] - scene.positions[t.x]);
+        const float len = glm::length(n);
+        if (len > 0.0f && std::abs(n.y) >= kFloorNormalY * len) {
+            floors.push_back(i);
+        }
+    }
+    const size_t stride = floors.size() / kMaxStoreySamples + 1;
+    const glm::vec3 size = scene.bounds.size();
+    const float skip = 1e-5f * std::max({size.x, size.y, size.z});
+    std::vector<std::pair<float, float>> storeys; // (height, floor area)
+    double all = 0.0, roofed = 0.0;
+    for (size_t k = 0; k < floors.size(); k += stride) {
+        const glm::uvec3 t = scene.triangles[floors[k]];
+        const glm::vec3 a = scene.positions[t.x], b = scene.positions[t.y],
+                        c = scene.positions[t.z];
+        // Four points: the centroid and the midpoints from it to each corner.
+        const float area = 0.125f * glm::length(glm::cross(b - a, c - a));
+        const glm::vec3 centre = (a + b + c) / 3.0f;
+        for (const glm::vec3 point :
+             {centre, 0.5f * (centre + a), 0.5f * (centre + b), 0.5f * (centre + c)}) {
+            all += area;
+            const float up = distanceUp(scene, point, skip);
+            if (std::isfinite(up)) {
+                storeys.emplace_back(up, area);
+                roofed += area;
+            }
+        }
+    }
+    if (storeys.empty() || roofed < kMinRoofedShare * all) {
         return 0.0f;
     }
-    std::sort(walls.begin(), walls.end());
+    std::sort(storeys.begin(), storeys.end());
     double below = 0.0;
-    for (const auto& [height, area] : walls) {
+    for (const auto& [height, area] : storeys) {
         below += area;
-        if (below >= 0.5 * total) {
+        if (below >= 0.5 * roofed) {
             return height;
         }
     }
-    return walls.back().first;
+    return storeys.back().first;
 }
 
 bool plausibleStorey(float metres) {
     return metres >= kPlausibleStoreyMinMetres && metres <= kPlausibleStoreyMaxMetres;
 }
 
-// The "--scale S makes it X m" clauses for a scene over kPlausibleSceneMaxMetres: the scales
-// whose storey height is plausible, or every scale when none is (or the scene has no walls).
+// The "--scale S makes it X m" clauses for a scene over kPlausibleSceneMaxMetres, every scale
+// named: first those that make its storey height plausible, then the others.
 std::string scaleSuggestions(float longest, float storey) {
     struct Unit {
         const char* name;
@@ -134,22 +180,21 @@ std::string scaleSuggestions(float longest, float storey) {
     const Unit units[] = {{"centimetres", "0.01", 0.01f},
                           {"inches", "0.0254", 0.0254f},
                           {"millimetres", "0.001", 0.001f}};
-    bool any = false;
-    for (const Unit& u : units) {
-        any = any || plausibleStorey(storey * u.scale);
-    }
     std::string out;
     char clause[160];
-    for (const Unit& u : units) {
-        if (any && !plausibleStorey(storey * u.scale)) {
-            continue;
-        }
-        std::snprintf(clause, sizeof clause, "%sin %s, --scale %s makes it %.4g m",
-                      out.empty() ? "if the file is " : "; ", u.name, u.flag, longest * u.scale);
-        out += clause;
-        if (storey > 0.0f) {
-            std::snprintf(clause, sizeof clause, " with %.3g m walls", storey * u.scale);
+    for (const bool fits : {true, false}) {
+        for (const Unit& u : units) {
+            if (plausibleStorey(storey * u.scale) != fits) {
+                continue;
+            }
+            std::snprintf(clause, sizeof clause, "%sin %s, --scale %s makes it %.4g m",
+                          out.empty() ? "if the file is " : "; ", u.name, u.flag,
+                          longest * u.scale);
             out += clause;
+            if (storey > 0.0f) {
+                std::snprintf(clause, sizeof clause, " with %.3g m storeys", storey * u.scale);
+                out += clause;
+            }
         }
     }
     return out;
@@ -157,9 +202,9 @@ std::string scaleSuggestions(float longest, float storey) {
 } // namespace
 
 // The rule (scene.hpp): plausible in metres when the longest side is 1 cm..100 m, or when the
-// walls' median height is a storey (2..6 m) whatever the extent, so a 120 m level of 3 m rooms
-// is not questioned. Over 100 m with implausible walls, the warning names the scales that make
-// the walls a storey: a 3 m room in centimetres is 300 units high (0.01 fits, 0.0254 makes
+// storey height (storeyHeight) is 2..6 m whatever the extent, so a 120 m level of 3 m rooms is
+// not questioned. Over 100 m otherwise, the warning names every scale, first those that make
+// the storeys 2..6 m: a 3 m room in centimetres is 300 units high (0.01 fits, 0.0254 makes
 // 7.6 m), in inches 118 units (0.0254 fits, 0.01 makes 1.2 m).
 std::string implausibleSizeWarning(const Scene& scene, const std::string& file) {
     if (!scene.hasGeometry()) {
@@ -176,18 +221,18 @@ std::string implausibleSizeWarning(const Scene& scene, const std::string& file) 
         if (plausibleStorey(storey)) {
             return {};
         }
-        char walls[96] = "it has no walls";
+        char storeys[128] = "too few of its floors have a ceiling to measure its storeys";
         if (storey > 0.0f) {
-            std::snprintf(walls, sizeof walls,
-                          "its walls are %.3g m high (median; a storey is %g "
-                          "to %g m)",
+            std::snprintf(storeys, sizeof storeys,
+                          "its storeys are %.3g m high (median floor to ceiling; %g to %g m is "
+                          "plausible)",
                           storey, kPlausibleStoreyMinMetres, kPlausibleStoreyMaxMetres);
         }
         std::snprintf(text, sizeof text,
                       "%s: the scene is %.4g m across (%.4g x %.4g x %.4g m), more than %g m, and "
                       "%s: %s (glTF says metres; exporters often write other units)",
                       file.c_str(), longest, size.x, size.y, size.z, kPlausibleSceneMaxMetres,
-                      walls, scaleSuggestions(longest, storey).c_str());
+                      storeys, scaleSuggestions(longest, storey).c_str());
     } else {
         std::snprintf(text, sizeof text,
                       "%s: the scene is %.4g m across, less than %g m: if the file is in "

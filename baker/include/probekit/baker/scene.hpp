@@ -141,9 +141,9 @@ struct LoadOptions {
 
 // Units: a scene is plausible in metres when its longest side (after the scale) is within
 // kPlausibleSceneMinMetres..kPlausibleSceneMaxMetres, or when its storey height (the median
-// height of its vertical surfaces: implausibleSizeWarning, scene.cpp) is within
+// distance from its floors straight up to the next surface: storeyHeight, scene.cpp) is within
 // kPlausibleStoreyMinMetres..kPlausibleStoreyMaxMetres, whatever its extent; loadGltf warns
-// otherwise and names the scales that would make it plausible.
+// otherwise and names the scales, first those that make its storeys plausible.
 constexpr float kPlausibleSceneMaxMetres = 100.0f; // a large building; more is a cm/mm export
 constexpr float kPlausibleSceneMinMetres = 0.01f;  // a coin; less is an export in kilometres
 constexpr float kPlausibleStoreyMinMetres = 2.0f;  // a low room or a door
@@ -153,8 +153,9 @@ constexpr float kPlausibleStoreyMaxMetres = 6.0f;  // a hall's storey
 void applyUnitScale(Scene& scene, float scale);
 
 // The warning loadGltf gives for a scene whose size is implausible in metres (empty when it is
-// plausible by the rule above, or it has no geometry), naming the --scale values (0.01, 0.0254,
-// 0.001 over 100 m; 1000 under 1 cm) that would make it plausible.
+// plausible by the rule above, or it has no geometry), naming the --scale values that would
+// make it plausible: 0.01, 0.0254 and 0.001 over 100 m (those that make its storeys 2..6 m
+// first, each with the size and storey height it gives), 1000 under 1 cm.
 std::string implausibleSizeWarning(const Scene& scene, const std::string& file);
 
 // Loads a .gltf or .glb (embedded or external buffers and images), glTF 2.x only. Triangle
