@@ -511,7 +511,8 @@ const std::vector<Field<BakeConfig>>& topFields() {
               "--method"),
         field("seed", &BakeConfig::seed, whole(0, UINT64_MAX), "", "random seed", "--seed"),
         field("scale", &BakeConfig::scale, positive(), "m/unit",
-              "metres per scene unit (0.01: the file is in centimetres, 0.001: millimetres)",
+              "metres per scene unit (0.01: the file is in centimetres, 0.0254: inches, 0.001: "
+              "millimetres)",
               "--scale"),
         {"max_memory_mb", whole(1, 1u << 30), "MiB",
          "dense volumes: the bake's working memory; bricked: their GPU bytes", "--max-memory",
