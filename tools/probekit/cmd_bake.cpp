@@ -200,6 +200,16 @@ Result<baker::BakeConfig> configFromOptions(const BakeOptionsCli& o) {
     return config;
 }
 
+// Prints each of `warnings` that is not among `already` (printed before).
+void printNewWarnings(const std::vector<std::string>& warnings,
+                      const std::vector<std::string>& already) {
+    for (const std::string& w : warnings) {
+        if (std::find(already.begin(), already.end(), w) == already.end()) {
+            printError("bake", "warning: " + w);
+        }
+    }
+}
+
 // The loader's warnings are printed unless -q (they are in --report's warnings either way).
 Result<baker::Scene> loadScene(const BakeOptionsCli& o, const baker::BakeConfig& config) {
     baker::LoadOptions load_options;
@@ -216,8 +226,8 @@ Result<baker::Scene> loadScene(const BakeOptionsCli& o, const baker::BakeConfig&
         return environment.error();
     }
     scene.value().environment = std::move(environment).value();
-    for (const std::string& w : o.quiet ? std::vector<std::string>{} : scene.value().warnings) {
-        printError("bake", "warning: " + w);
+    if (!o.quiet) {
+        printNewWarnings(scene.value().warnings, {});
     }
     return scene;
 }
@@ -588,16 +598,6 @@ chooseForTarget(const BakeOptionsCli& o, const baker::Scene& scene, baker::BakeC
         printChoice(*choice);
     }
     return choice;
-}
-
-// Prints each of `warnings` that is not among `already` (printed before).
-void printNewWarnings(const std::vector<std::string>& warnings,
-                      const std::vector<std::string>& already) {
-    for (const std::string& w : warnings) {
-        if (std::find(already.begin(), already.end(), w) == already.end()) {
-            printError("bake", "warning: " + w);
-        }
-    }
 }
 
 // A finished bake and what made it, for rank 0's output.
