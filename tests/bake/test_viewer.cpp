@@ -158,7 +158,8 @@ TEST(ViewerScene, DirectLightsAreTheLightsTheBakeLeftOut) {
     baker::Scene s;
     s.lights.resize(4);
     for (size_t i = 0; i < s.lights.size(); ++i) {
-        s.lights[i].name = "l" + std::to_string(i);
+        s.lights[i].name = "l"; // appended, not operator+: a GCC 12 -Wrestrict false positive
+        s.lights[i].name += std::to_string(i);
     }
     BakeMetadata m;
     m.parametersJson =
