@@ -412,10 +412,16 @@ private:
         if (std::fabs(d) > double(std::numeric_limits<float>::max())) {
             fail(path, "must be finite as a 32-bit float, |x| <= 3.4e38 (got " + v.dump() + ")");
         }
-        const bool above = a.loOpen ? d > a.lo : d >= a.lo;
-        const bool below = a.hiOpen ? d < a.hi : d <= a.hi;
-        if (!above || !below) {
-            fail(path, "must be " + a.rangeText() + " (got " + v.dump() +
+        // The range holds for the value as stored: 0.9999999999999999 is below 1 as a double
+        // but rounds to 1 as a float, and 1e-50 rounds to 0.
+        const double stored = double(float(d));
+        const auto inRange = [&a](double x) {
+            return (a.loOpen ? x > a.lo : x >= a.lo) && (a.hiOpen ? x < a.hi : x <= a.hi);
+        };
+        if (!inRange(d) || !inRange(stored)) {
+            const std::string rounded =
+                inRange(d) ? ", which is " + numberText(stored) + " as a 32-bit float" : "";
+            fail(path, "must be " + a.rangeText() + " (got " + v.dump() + rounded +
                            (a.note.empty() ? "" : "; " + a.note) + ")");
         }
         return d;

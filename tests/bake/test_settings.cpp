@@ -160,6 +160,12 @@ TEST(Settings, RangesAreCheckedAtTheirEnds) {
         {"path.max_bounces", "0", "-1", "path.max_bounces: must be >= 0 (got -1)"},
         {"max_memory_mb", "1", "0", "max_memory_mb: must be in 1..1073741824 (got 0)"},
         {"validity.dilate", "false", "yes", "validity.dilate: must be true or false"},
+        // Below the open end as a double, at it as the float the setting is stored in (found by
+        // fuzz_config).
+        {"path.noise_target", "0.99999994", "0.9999999999999999",
+         "path.noise_target: must be in [0, 1) (got 0.9999999999999999, which is 1 as a 32-bit "
+         "float"},
+        {"lpv.propagation_weight", "1e-30", "1e-50", "which is 0 as a 32-bit float"},
     };
     for (const Case& c : cases) {
         SCOPED_TRACE(c.path);

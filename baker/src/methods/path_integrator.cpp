@@ -347,12 +347,12 @@ PathIntegrator::sampleEmitterFrom(glm::vec3 position, Rng& rng) const {
 
 void PathIntegrator::probeDirectLight(glm::vec3 position, float sample_weight, Rng& rng,
                                       sh::ShRgb& sh, PathStats& stats) const {
-    if (const std::optional<EmitterSampleFrom> e = sampleEmitterFrom(position, rng)) {
+    // Emitters and environment in mode indirect: sampled all the same, so that every other
+    // random number of the bake is the one a baked bake draws; only the shadow ray is skipped.
+    const std::optional<EmitterSampleFrom> e = sampleEmitterFrom(position, rng);
+    if (e && m_scene.emissiveDirectStored) {
         ++stats.rays;
-        // Emitters and environment in mode indirect: sampled all the same, so that every
-        // other random number of the bake is the one a baked bake draws.
-        if (m_scene.emissiveDirectStored &&
-            !m_tracer.occluded(position, e->target - position, 1.0f)) {
+        if (!m_tracer.occluded(position, e->target - position, 1.0f)) {
             const float w = powerHeuristic(e->pdf, kProbeDirectionPdf);
             sh::addSample(sh, m_order, e->direction, e->emitted * (w / e->pdf), sample_weight);
         }
