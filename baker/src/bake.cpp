@@ -752,6 +752,38 @@ float maxComponent(glm::vec3 v) {
 // In a bake that means the light was too strong for float sums somewhere (the loader refuses
 // intensities and emission above kMaxEmission, but a light or emitter almost touching a probe can
 // still overflow): name the scene and its brightest light, so the user knows where to look.
+// Half storage holds coefficients up to kHalfMax (65504). A volume whose probes pass it (a
+// light's intensity in other units, a probe beside a bright light) is stored in float and the
+// bake says so, rather than failing once the work is done.
+VolumeDesc storableDesc(VolumeDesc desc, std::span<const sh::ShRgb> probes,
+                        std::vector<std::string>& warnings) {
+    if (desc.storage != Storage::Float16) {
+        return desc;
+    }
+    float largest = 0.0f;
+    size_t largest_probe = 0;
+    const int count = sh::coefficientCount(desc.shOrder);
+    for (size_t i = 0; i < probes.size(); ++i) {
+        for (int k = 0; k < count; ++k) {
+            const float m = maxComponent(glm::abs(probes[i].rgb[size_t(k)]));
+            if (m > largest) { // NaN never is: makeVolume refuses it
+                largest = m;
+                largest_probe = i;
+            }
+        }
+    }
+    if (largest > kHalfMax) {
+        char text[160];
+        std::snprintf(text, sizeof text,
+                      "volume '%s': SH coefficient %.4g (probe %zu) is past the half-float "
+                      "maximum 65504; stored as float (--format float chooses it up front)",
+                      desc.name.c_str(), double(largest), largest_probe);
+        warnings.emplace_back(text);
+        desc.storage = Storage::Float32;
+    }
+    return desc;
+}
+
 Result<Volume> checkedVolume(const Scene& scene, Result<Volume> volume) {
     if (volume) {
         return volume;
@@ -804,7 +836,8 @@ Result<Volume> bakeBrickedVolume(BakeRun& run, const VolumeDesc& desc, const Vol
         // of those and pass but for rounding, which this pass catches (dering.hpp).
         deringStored(run, b.desc, b.probes, b.deringChanges);
     }
-    return checkedVolume(run.scene, makeVolume(b.desc, b.probes, b.validity, b.visibility));
+    const VolumeDesc stored = storableDesc(b.desc, b.probes, result.warnings);
+    return checkedVolume(run.scene, makeVolume(stored, b.probes, b.validity, b.visibility));
 }
 
 // Relocation (visibility.hpp, relocationTarget): every invalid probe of a dense volume that
@@ -886,9 +919,11 @@ Result<Volume> bakeDenseVolume(BakeRun& run, const VolumeDesc& desc, const Probe
                                       " invalid probes have no valid probe to dilate from");
         }
     }
+    // The storage is settled before deringing, whose rounding margin depends on it.
+    const VolumeDesc stored = storableDesc(desc, probes, result.warnings);
     if (run.config.dering) {
         std::vector<float> changes(count, kNotDeringed);
-        deringStored(run, desc, probes, changes);
+        deringStored(run, stored, probes, changes);
     }
     // Visibility from the validity before dilation: dilated probes stay hidden.
     std::vector<uint8_t> vis;
@@ -896,7 +931,7 @@ Result<Volume> bakeDenseVolume(BakeRun& run, const VolumeDesc& desc, const Probe
         vis = traceVolumeVisibility(run.tracer, desc, validity, run.threads, moves);
         run.rays.fetch_add(kVisibilityRaysPerProbe * count);
     }
-    return checkedVolume(run.scene, makeVolume(desc, probes, validity, vis));
+    return checkedVolume(run.scene, makeVolume(stored, probes, validity, vis));
 }
 
 Result<Volume> bakeVolume(BakeRun& run, const MethodState& method, const VolumeDesc& desc,

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <string>
 #include <system_error>
+#include <vector>
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -286,6 +287,100 @@ Result<std::filesystem::path> resolveOutputPath(const std::filesystem::path& pat
     return ioError(path, "cannot write there", ELOOP);
 }
 
+namespace {
+
+std::filesystem::path folderOf(const std::filesystem::path& target) {
+    return target.has_parent_path() ? target.parent_path() : std::filesystem::path(".");
+}
+
+// writeFileAtomic's temporary for `target`: ".NAME.tmp.PID.TAG" beside it.
+std::string temporaryName(const std::filesystem::path& target, const std::string& tag) {
+    std::string name = ".";
+    name += target.filename().string();
+    name += ".tmp." + std::to_string(::getpid()) + "." + tag;
+    return name;
+}
+
+// One output of checkOutputs: its path, folder and writability. Returns the file it would write.
+Result<std::filesystem::path> checkOneOutput(const NamedPath& output) {
+    const std::filesystem::path& path = output.path;
+    if (path.empty() || !path.has_filename()) {
+        std::string message = "'";
+        message += path.string();
+        message += "': ";
+        message += output.role;
+        message += " must name a file (it is empty or ends in a slash)";
+        return makeError(ErrorCode::InvalidArgument, message);
+    }
+    Result<std::filesystem::path> target = resolveOutputPath(path);
+    if (!target) {
+        return target.error();
+    }
+    const std::filesystem::path folder = folderOf(target.value());
+    struct stat info {};
+    if (::stat(folder.c_str(), &info) != 0) {
+        return ioError(path, "cannot write in the folder " + folder.string(), errno);
+    }
+    if (!S_ISDIR(info.st_mode)) {
+        return makeError(ErrorCode::Io, path.string() + ": " + folder.string() +
+                                            " is not a folder (it is " +
+                                            std::string(fileTypeText(info.st_mode)) + ")");
+    }
+    // The temporary the write will create, with as long a name ("check" is as long as the
+    // counter of a write will be in any run of fewer than 100,000 writes).
+    const std::filesystem::path probe = folder / temporaryName(target.value(), "check");
+    const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd < 0) {
+        const int error = errno;
+        return ioError(path, "cannot create a file in the folder " + folder.string(), error);
+    }
+    ::close(fd);
+    ::unlink(probe.c_str());
+    return target;
+}
+
+// The same file: the same inode when both exist, else the same canonical path.
+bool sameFile(const std::filesystem::path& a, const std::filesystem::path& b) {
+    std::error_code ec;
+    if (std::filesystem::equivalent(a, b, ec) && !ec) {
+        return true;
+    }
+    const std::filesystem::path ca = std::filesystem::weakly_canonical(a, ec);
+    if (ec) {
+        return false;
+    }
+    const std::filesystem::path cb = std::filesystem::weakly_canonical(b, ec);
+    return !ec && ca == cb;
+}
+
+} // namespace
+
+Result<void> checkOutputs(std::span<const NamedPath> outputs, std::span<const NamedPath> inputs) {
+    std::vector<std::filesystem::path> targets;
+    for (const NamedPath& output : outputs) {
+        Result<std::filesystem::path> target = checkOneOutput(output);
+        if (!target) {
+            return target.error();
+        }
+        for (const NamedPath& input : inputs) {
+            if (!input.path.empty() && sameFile(target.value(), input.path)) {
+                return makeError(ErrorCode::InvalidArgument,
+                                 output.path.string() + ": " + output.role + " is " + input.role +
+                                     " (" + input.path.string() + "); it would be overwritten");
+            }
+        }
+        for (size_t i = 0; i < targets.size(); ++i) {
+            if (sameFile(target.value(), targets[i])) {
+                return makeError(ErrorCode::InvalidArgument,
+                                 output.path.string() + ": " + output.role + " and " +
+                                     outputs[i].role + " name the same file");
+            }
+        }
+        targets.push_back(target.value());
+    }
+    return {};
+}
+
 Result<void> writeFileAtomic(const std::filesystem::path& path, std::span<const uint8_t> bytes) {
     if (path.filename().empty()) {
         return makeError(ErrorCode::InvalidArgument, path.string() + ": not a file path");
@@ -295,16 +390,12 @@ Result<void> writeFileAtomic(const std::filesystem::path& path, std::span<const 
         return resolved.error();
     }
     const std::filesystem::path& target = resolved.value();
-    const std::filesystem::path file_name = target.filename();
     // The temporary must live in the target's directory: rename() is only atomic within one
     // file system. pid + counter keep concurrent writers (threads or processes) apart.
     static std::atomic<uint64_t> counter{0};
-    const std::filesystem::path directory =
-        target.has_parent_path() ? target.parent_path() : std::filesystem::path(".");
-    std::string temp_name = ".";
-    temp_name += file_name.string();
-    temp_name += ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter.fetch_add(1));
-    const std::filesystem::path temp_path = directory / temp_name;
+    const std::filesystem::path directory = folderOf(target);
+    const std::filesystem::path temp_path =
+        directory / temporaryName(target, std::to_string(counter.fetch_add(1)));
 
     const TemporaryRegistration registration(temp_path);
     FileDescriptor fd(::open(temp_path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666));

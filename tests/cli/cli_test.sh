@@ -340,6 +340,39 @@ ln -s folder to-folder.pvol
 expect 1 "to-folder.pvol: not a regular file \(it is a symbolic link to a directory\)" -- \
     "$pk" synth -o to-folder.pvol
 
+# Outputs that would destroy an input or the other output, and folders that cannot take the
+# file: refused before any work (nothing printed on stdout, so no bake started), inputs intact.
+cp cornell.gltf keep.gltf && cp cornell.bin keep.bin
+cp points.csv keep.csv && cp small.pvol keep.pvol
+expect 1 "cornell.gltf: -o is the scene \(cornell.gltf\); it would be overwritten" -- \
+    "$pk" bake cornell.gltf -o cornell.gltf --resolution 2,2,2 --samples 4
+expect 1 "cornell.bin: -o is a file of the scene \(.*cornell.bin\); it would be overwritten" -- \
+    "$pk" bake cornell.gltf -o cornell.bin --resolution 2,2,2 --samples 4
+echo '{"volumes": [{"resolution": [2, 2, 2]}]}' >tiny.json
+expect 1 "tiny.json: -o is the config \(tiny.json\)" -- \
+    "$pk" bake cornell.gltf -o tiny.json --config tiny.json
+expect 1 "same.pvol: --report and -o name the same file" -- \
+    "$pk" bake cornell.gltf -o same.pvol --report same.pvol --resolution 2,2,2 --samples 4
+expect 1 "points.csv: -o is the points file \(points.csv\)" -- \
+    "$pk" sample small.pvol --points points.csv -o points.csv
+expect 1 "small.pvol: -o is the volume \(small.pvol\)" -- \
+    "$pk" sample small.pvol --points points.csv -o ./small.pvol
+check "the refused outputs left their inputs as they were" bash -c \
+    'cmp -s cornell.gltf keep.gltf && cmp -s cornell.bin keep.bin && cmp -s points.csv keep.csv &&
+     cmp -s small.pvol keep.pvol && test ! -e same.pvol'
+for bad in "no-such-folder/out.pvol" "out-folder/" "$(printf 'n%.0s' {1..250}).pvol"; do
+    mkdir -p out-folder
+    out=$("$pk" bake cornell.gltf -o "$bad" --resolution 2,2,2 --samples 4 2>/dev/null)
+    check "bake -o '${bad:0:40}' fails before any work (stdout: '${out:0:40}')" \
+        test $? -ne 0 -a -z "$out"
+done
+expect 1 "no-such-folder/out.pvol: cannot write in the folder no-such-folder: No such file" -- \
+    "$pk" bake cornell.gltf -o no-such-folder/out.pvol
+expect 1 "out-folder/': -o must name a file \(it is empty or ends in a slash\)" -- \
+    "$pk" bake cornell.gltf -o out-folder/
+expect 1 "cannot create a file in the folder \.: File name too long" -- \
+    "$pk" bake cornell.gltf -o "$(printf 'n%.0s' {1..250}).pvol"
+
 # Names and metadata with terminal escapes and bytes that are not UTF-8: printed escaped (text)
 # or as JSON escapes and U+FFFD (--json), never raw and never an abort.
 expect 0 "volume '\\\\x1b\]0;pwned\\\\x07\\\\x1b\[2J\\\\xc2\\\\x9b\\\\xff': 2x2x2" -- \

@@ -1855,6 +1855,43 @@ TEST_F(PvolAtomicWrite, RefusesToReplaceAFifoADirectoryOrASocket) {
               (std::vector<std::string>{"folder.pvol", "pipe.pvol", "socket.pvol"}));
 }
 
+TEST_F(PvolAtomicWrite, CheckOutputsRefusesAnInputUnderAnyNameAndLeavesNothingBehind) {
+    const std::filesystem::path scene = m_dir / "scene.gltf";
+    ASSERT_TRUE(writeFileAtomic(scene, std::string_view("{}")).ok());
+    std::filesystem::create_hard_link(scene, m_dir / "hard.gltf");
+    std::filesystem::create_symlink("scene.gltf", m_dir / "soft.gltf");
+    const NamedPath inputs[] = {{scene, "the scene"}};
+    for (const char* alias : {"scene.gltf", "hard.gltf", "soft.gltf"}) {
+        SCOPED_TRACE(alias);
+        const NamedPath outputs[] = {{m_dir / alias, "-o"}};
+        const Result<void> r = checkOutputs(outputs, inputs);
+        ASSERT_FALSE(r.ok());
+        std::string want = (m_dir / alias).string();
+        want += ": -o is the scene (";
+        want += scene.string();
+        want += "); it would be overwritten";
+        EXPECT_EQ(r.error().message, want);
+    }
+    // Two outputs through different spellings of one new file.
+    const NamedPath same[] = {{m_dir / "out.pvol", "-o"}, {m_dir / "." / "out.pvol", "--report"}};
+    const Result<void> twice = checkOutputs(same, inputs);
+    ASSERT_FALSE(twice.ok());
+    EXPECT_NE(twice.error().message.find("--report and -o name the same file"), std::string::npos);
+    // A good output: accepted, and the temporary made to prove the folder takes it is gone.
+    const NamedPath good[] = {{m_dir / "new.pvol", "-o"}, {m_dir / "report.json", "--report"}};
+    EXPECT_TRUE(checkOutputs(good, inputs).ok());
+    EXPECT_EQ(directoryEntries(),
+              (std::vector<std::string>{"hard.gltf", "scene.gltf", "soft.gltf"}));
+    const NamedPath missing[] = {{m_dir / "absent" / "x.pvol", "-o"}};
+    const Result<void> no_folder = checkOutputs(missing, inputs);
+    ASSERT_FALSE(no_folder.ok());
+    std::string want = (m_dir / "absent" / "x.pvol").string();
+    want += ": cannot write in the folder ";
+    want += (m_dir / "absent").string();
+    want += ": No such file or directory";
+    EXPECT_EQ(no_folder.error().message, want);
+}
+
 TEST_F(PvolAtomicWrite, RefusesToReplaceACharacterDevice) {
     // A copy of /dev/null's node (needs root or CAP_MKNOD), so the test never risks the real one.
     const std::filesystem::path device = m_dir / "null.pvol";

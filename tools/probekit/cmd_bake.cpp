@@ -232,6 +232,30 @@ Result<baker::Scene> loadScene(const BakeOptionsCli& o, const baker::BakeConfig&
     return scene;
 }
 
+// The bake's outputs (-o, --report) checked against each other and every file it reads: the
+// config, the environment map and, once loaded, the scene's own files (file_io.hpp,
+// checkOutputs).
+Result<void> checkBakeOutputs(const BakeOptionsCli& o, const baker::BakeConfig* config,
+                              const baker::Scene* scene) {
+    std::vector<NamedPath> outputs = {{o.output, "-o"}};
+    if (!o.report.empty()) {
+        outputs.push_back({o.report, "--report"});
+    }
+    std::vector<NamedPath> inputs = {{o.scene, "the scene"}};
+    if (!o.config.empty()) {
+        inputs.push_back({o.config, "the config"});
+    }
+    if (config && !config->environment.file.empty()) {
+        inputs.push_back({config->environment.file, "the environment map"});
+    }
+    if (scene) {
+        for (const std::filesystem::path& file : scene->files) {
+            inputs.push_back({file, "a file of the scene"});
+        }
+    }
+    return checkOutputs(outputs, inputs);
+}
+
 void printChoice(const baker::TargetChoice& c) {
     std::printf("target error %.3g (relative RMS irradiance error against a path reference)\n"
                 "  pilot: %u points x 2 estimates x %u directions, %.2f s: noise %.3g per "
@@ -649,10 +673,10 @@ int finishBake(const BakeDone& d, const DistributedBake* job) {
 int runBakeProcess(const BakeOptionsCli& all, const DistributedBake* job) {
     const bool rank0 = !job || job->rank() == 0;
     const BakeOptionsCli o = processOptions(all, rank0);
-    // A bad -o fails before the bake, not after it (on rank 0, the only one that writes it:
-    // other nodes need not see its directory).
-    if (Result<std::filesystem::path> target = resolveOutputPath(o.output); rank0 && !target) {
-        return fail(target.error());
+    // A bad -o or --report fails before the bake, not after it (on rank 0, the only one that
+    // writes them: other nodes need not see their folders); checked again with the scene's files.
+    if (Result<void> outputs = checkBakeOutputs(o, nullptr, nullptr); rank0 && !outputs) {
+        return fail(outputs.error());
     }
     Result<baker::BakeConfig> config = configFromOptions(o);
     if (!config) {
@@ -661,6 +685,10 @@ int runBakeProcess(const BakeOptionsCli& all, const DistributedBake* job) {
     Result<baker::Scene> scene = loadScene(o, config.value());
     if (!scene) {
         return fail(scene.error());
+    }
+    if (Result<void> outputs = checkBakeOutputs(o, &config.value(), &scene.value());
+        rank0 && !outputs) {
+        return fail(outputs.error());
     }
     // bake() refuses an unlit scene too; checked here before --target-error's pilot runs.
     if (Result<void> lit = baker::checkSceneLit(scene.value()); !lit && !o.allowUnlit) {

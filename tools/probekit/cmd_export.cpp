@@ -56,9 +56,10 @@ Result<exporters::ExportResult> runExporter(const Volume& v, const ExportOptions
 }
 
 int runExport(const ExportOptions& o) {
-    Result<std::filesystem::path> target = resolveOutputPath(o.output);
-    if (!target) {
-        printError("export", target.error().message);
+    const NamedPath outputs[] = {{o.output, "-o"}};
+    const NamedPath inputs[] = {{o.input, "the volume"}};
+    if (Result<void> checked = checkOutputs(outputs, inputs); !checked) {
+        printError("export", checked.error().message);
         return kExitFailure;
     }
     Result<PvolFile> file = readPvol(o.input);

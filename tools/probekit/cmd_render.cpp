@@ -66,6 +66,17 @@ struct RenderOptions {
     std::string giQuality = "l1";
 };
 
+// An image render writes checked against the files it reads (file_io.hpp, checkOutputs); the
+// scene's buffers and images are checked by name when the scene is a .gltf beside them.
+Result<void> checkRenderOutput(const RenderOptions& o, const std::string& image) {
+    const NamedPath outputs[] = {{image, "-o"}};
+    std::vector<NamedPath> inputs = {{o.scene, "the scene"}, {o.volumes, "the volume"}};
+    if (o.env && o.env->find(',') == std::string::npos && *o.env != "none") {
+        inputs.push_back({*o.env, "the environment map"});
+    }
+    return checkOutputs(outputs, inputs);
+}
+
 std::string extensionOf(const std::string& path) {
     std::string ext = std::filesystem::path(path).extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(),
@@ -555,9 +566,9 @@ int runRender(const RenderOptions& o) {
     if (!o.sunPath.empty() || o.frames != 1) {
         return fail("render: --sun-path and --frames need --dynamic-gi");
     }
-    // A bad -o fails before any work.
-    if (Result<std::filesystem::path> target = resolveOutputPath(o.output); !target) {
-        return fail(target.error().message);
+    // A bad -o fails before any work, and never names an input.
+    if (Result<void> checked = checkRenderOutput(o, o.output); !checked) {
+        return fail(checked.error().message);
     }
     Result<baker::Scene> scene = loadScene(o);
     if (!scene) {
@@ -664,8 +675,8 @@ Result<GiInputs> loadGiInputs(const RenderOptions& o) {
     if (!first_path) {
         return first_path.error();
     }
-    if (Result<std::filesystem::path> target = resolveOutputPath(first_path.value()); !target) {
-        return target.error();
+    if (Result<void> checked = checkRenderOutput(o, first_path.value()); !checked) {
+        return checked.error();
     }
     Result<baker::Scene> loaded = loadScene(o);
     if (!loaded) {

@@ -31,10 +31,12 @@ int fail(const std::string& message) {
 }
 
 int runSample(const SampleOptions& o) {
-    // A bad -o fails before any work.
+    // A bad -o fails before any work, and never names an input.
     if (!o.output.empty()) {
-        if (auto target = resolveOutputPath(o.output); !target) {
-            return fail(target.error().message);
+        const NamedPath outputs[] = {{o.output, "-o"}};
+        const NamedPath inputs[] = {{o.file, "the volume"}, {o.points, "the points file"}};
+        if (Result<void> checked = checkOutputs(outputs, inputs); !checked) {
+            return fail(checked.error().message);
         }
     }
     Result<std::string> text = readRegularFile(o.points, kMaxPointsFileBytes, "points file");

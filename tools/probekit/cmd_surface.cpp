@@ -241,8 +241,10 @@ struct ReferenceOptions {
 };
 
 int runReference(const ReferenceOptions& o) {
-    if (Result<std::filesystem::path> target = resolveOutputPath(o.output); !target) {
-        printError("surface-reference", target.error().message);
+    const NamedPath outputs[] = {{o.output, "-o"}};
+    const NamedPath inputs[] = {{o.scene, "the scene"}};
+    if (Result<void> checked = checkOutputs(outputs, inputs); !checked) {
+        printError("surface-reference", checked.error().message);
         return kExitFailure;
     }
     Result<baker::Scene> scene = baker::loadGltf(o.scene);

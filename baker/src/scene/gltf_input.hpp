@@ -152,6 +152,7 @@ struct IoContext {
     MemoryBudget& budget;
     std::string file;
     std::optional<LoadError> refusal;
+    std::vector<std::filesystem::path> read; // every buffer and image file read, in order
 };
 
 // Replaces tinygltf's file callbacks (every read goes through AssetFolder::resolve and

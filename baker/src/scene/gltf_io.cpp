@@ -272,6 +272,7 @@ bool readWholeFile(std::vector<unsigned char>* out, std::string* err, const std:
         return false;
     }
     *out = std::move(bytes).value();
+    context.read.push_back(resolved.path);
     return true;
 }
 

@@ -116,9 +116,10 @@ void checkJsonDocument(std::span<const uint8_t> text, uint64_t text_offset, cons
 // the budget; `warning` receives tinygltf's warnings. Throws LoadError.
 tinygltf::Model parseModel(std::span<const uint8_t> bytes, std::span<const uint8_t> text,
                            bool binary, const gltf::AssetFolder& folder, MemoryBudget& budget,
-                           const std::string& file, std::string& warning) {
+                           const std::string& file, std::string& warning,
+                           std::vector<std::filesystem::path>& read) {
     tinygltf::TinyGLTF parser;
-    gltf::IoContext io{folder, budget, file, std::nullopt};
+    gltf::IoContext io{folder, budget, file, std::nullopt, {}};
     gltf::installIoCallbacks(parser, io);
     tinygltf::Model model;
     std::string error;
@@ -141,6 +142,7 @@ tinygltf::Model parseModel(std::span<const uint8_t> bytes, std::span<const uint8
         throw LoadError{ErrorCode::InvalidArgument,
                         file + ": " + (message.empty() ? "tinygltf failed" : message)};
     }
+    read = std::move(io.read);
     return model;
 }
 
@@ -176,11 +178,13 @@ Result<Scene> loadGltfBytes(std::span<const uint8_t> bytes, const std::filesyste
         }
         checkJsonDocument(text, text_offset, file, binary ? &glb : nullptr, folder, budget);
         std::string warning;
+        std::vector<std::filesystem::path> read;
         const tinygltf::Model model =
-            parseModel(bytes, text, binary, folder, budget, file, warning);
+            parseModel(bytes, text, binary, folder, budget, file, warning, read);
         GltfLoader loader(model, file, budget);
         Result<Scene> scene = loader.load(options.sceneIndex, xxhash64(bytes), warning);
         if (scene) {
+            scene.value().files = std::move(read);
             applyUnitScale(scene.value(), options.scale);
             if (std::string w = implausibleSizeWarning(scene.value(), file); !w.empty()) {
                 scene.value().warnings.push_back(std::move(w));
@@ -206,7 +210,11 @@ Result<Scene> loadGltf(const std::filesystem::path& path, const LoadOptions& opt
     if (!bytes) {
         return bytes.error();
     }
-    return loadGltfBytes(bytes.value(), path, options);
+    Result<Scene> scene = loadGltfBytes(bytes.value(), path, options);
+    if (scene) {
+        scene.value().files.insert(scene.value().files.begin(), path);
+    }
+    return scene;
 }
 
 } // namespace probekit::baker

@@ -95,10 +95,13 @@ struct Scene {
     Environment environment;
     std::vector<SceneNode> nodes; // every node of the chosen scene, in glTF order
 
-    grid::Aabb bounds;                 // world bounds of all triangles (empty scene: zero)
-    float unitScale = 1.0f;            // metres per file unit applied at load (LoadOptions::scale)
-    uint64_t sourceHash = 0;           // xxHash64 of the glTF/glb file bytes
-    std::string source;                // the file it was loaded from, for messages (may be empty)
+    grid::Aabb bounds;       // world bounds of all triangles (empty scene: zero)
+    float unitScale = 1.0f;  // metres per file unit applied at load (LoadOptions::scale)
+    uint64_t sourceHash = 0; // xxHash64 of the glTF/glb file bytes
+    std::string source;      // the file it was loaded from, for messages (may be empty)
+    // Every file the load read: the glTF or glb file (loadGltf only), then its buffers and
+    // images. Commands refuse an output that is one of them (checkOutputs, file_io.hpp).
+    std::vector<std::filesystem::path> files;
     std::vector<std::string> warnings; // non-fatal problems, each naming file and field
     // Light modes (BakeConfig::lights; applied by bake() to its own copy of the scene): whether a
     // probe stores each source's direct light. Per light, 0 = left out (mode indirect: only its

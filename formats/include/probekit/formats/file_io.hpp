@@ -47,6 +47,23 @@ std::string_view fileTypeText(uint32_t st_mode);
 // at once; writeFileAtomic checks again when it writes.
 Result<std::filesystem::path> resolveOutputPath(const std::filesystem::path& path);
 
+// A command's file, named for messages: {"out.pvol", "-o"}, {"scene.gltf", "the scene"}.
+struct NamedPath {
+    std::filesystem::path path;
+    std::string role;
+};
+
+// Checks, before any long work, everything about a command's outputs that can be known before
+// they are written, so that a bake does not end in a failed write or destroy what it read:
+//   * each output is a file path (not empty, no trailing slash) that resolveOutputPath accepts;
+//   * its folder exists, is a folder, and takes the temporary file writeFileAtomic would create
+//     there (created and removed now: a read-only folder or file system, a name too long, no
+//     permission);
+//   * no output is an input (same file, through links or hard links) and no two outputs are
+//     the same file.
+// Errors name the path and its role: "scene.gltf: -o is the scene; it would be overwritten".
+Result<void> checkOutputs(std::span<const NamedPath> outputs, std::span<const NamedPath> inputs);
+
 // Writes bytes atomically: a temporary file in the target's directory, fsync, rename over the
 // target (resolveOutputPath's rule above). If anything fails the temporary file is removed, the
 // target is untouched (an existing file keeps its old contents) and the error names the path.
