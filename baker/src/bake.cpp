@@ -231,17 +231,31 @@ Result<PlacedBox> unpaddedBox(const Scene& scene, const VolumeConfig& v, const s
     return placed;
 }
 
-// The automatic padding rule (bake.hpp, kAutoPadding*): the share of a lattice of test points
-// in the box (in `frame`) that lie inside geometry by the bake's validity rule.
-float insideShare(const RayTracer& tracer, const PlacedBox& placed, float backface_threshold) {
+// What the automatic padding rule (config.hpp, kAutoPadding*) saw of a lattice of test points
+// in the box: those inside geometry by the bake's validity rule, and those outside geometry
+// that see front faces in at least kAutoPaddingEnclosedHits of their directions (the open space
+// of a room or a sealed level; outside a closed object a point sees at most about half).
+struct PaddingTest {
+    uint32_t points = 0;
+    uint32_t inside = 0;
+    uint32_t enclosed = 0;
+    float insideShare() const { return float(inside) / float(points); }
+    // A level seen from its solid void: at least a quarter of the open points are enclosed.
+    bool sealedLevel() const { return enclosed > 0 && 4 * enclosed >= points - inside; }
+};
+
+PaddingTest paddingTest(const RayTracer& tracer, const PlacedBox& placed,
+                        float backface_threshold) {
     const uint32_t n = kAutoPaddingLattice;
     const glm::vec3 size = placed.box.size();
-    uint32_t inside = 0;
+    PaddingTest test;
+    test.points = n * n * n;
     for (uint32_t i = 0; i < n * n * n; ++i) {
         const glm::vec3 cell(float(i % n), float(i / n % n), float(i / (n * n)));
         const glm::vec3 local = placed.box.min + (cell + 0.5f) / float(n) * size;
         const glm::vec3 origin = placed.frame.toWorld(local);
         uint32_t back = 0;
+        uint32_t front = 0;
         for (uint32_t r = 0; r < kAutoPaddingRays; ++r) {
             // Fibonacci sphere: evenly spread, deterministic directions.
             const float z = 1.0f - (2.0f * float(r) + 1.0f) / float(kAutoPaddingRays);
@@ -250,10 +264,15 @@ float insideShare(const RayTracer& tracer, const PlacedBox& placed, float backfa
             const std::optional<Hit> hit =
                 tracer.intersect(origin, glm::vec3(s * std::cos(phi), s * std::sin(phi), z));
             back += hit && hit->backFace;
+            front += hit && !hit->backFace;
         }
-        inside += float(back) / float(kAutoPaddingRays) > backface_threshold;
+        if (float(back) / float(kAutoPaddingRays) > backface_threshold) {
+            ++test.inside;
+        } else if (float(front) >= kAutoPaddingEnclosedHits * float(kAutoPaddingRays)) {
+            ++test.enclosed;
+        }
     }
-    return float(inside) / float(n * n * n);
+    return test;
 }
 
 // Probes (or bricks) per axis of an automatic resolution, and a note when max_resolution cut it.
@@ -278,8 +297,8 @@ glm::uvec3 automaticResolution(const VolumeConfig& v, const grid::Aabb& box, flo
         std::snprintf(text, sizeof text,
                       "%s: %g probes/m over %.4g x %.4g x %.4g m asks %u x %u x %u %s; "
                       "max_resolution %u caps it to %u x %u x %u (probe spacing %.3g x %.3g x "
-                      "%.3g m); raise max_resolution, use layout bricked, or check the scene's "
-                      "units (--scale)",
+                      "%.3g m); raise it (--max-resolution), use layout bricked, or check the "
+                      "scene's units (--scale)",
                       label.c_str(), double(density), size.x, size.y, size.z, asked.x, asked.y,
                       asked.z, bricked ? "level-0 bricks" : "probes", v.maxResolution, res.x, res.y,
                       res.z, spacing.x, spacing.y, spacing.z);
@@ -333,8 +352,20 @@ Result<float> volumePadding(const Scene& scene, const BakeConfig& config, const 
     if (!traced) {
         return traced.error();
     }
-    const float share = insideShare(*traced.value(), placed, config.backfaceThreshold);
+    const PaddingTest test = paddingTest(*traced.value(), placed, config.backfaceThreshold);
+    const float share = test.insideShare();
     if (share <= kAutoPaddingInsideShare) {
+        return 0.0f;
+    }
+    if (test.sealedLevel()) {
+        char text[320];
+        std::snprintf(text, sizeof text,
+                      "%s: %.0f%% of the test points in the scene's box lie inside geometry, "
+                      "but %u of the %u outside it see walls in %.0f%%+ of directions: a level "
+                      "seen from its solid space, not a closed object, so no padding",
+                      label.c_str(), 100.0 * share, test.enclosed, test.points - test.inside,
+                      100.0 * kAutoPaddingEnclosedHits);
+        notes.emplace_back(text);
         return 0.0f;
     }
     const glm::vec3 size = placed.box.size();
@@ -1012,6 +1043,19 @@ BakeMetadata bakeMetadata(const BakeRun& run, const VolumePlan& plan, const Meth
 
 namespace {
 
+// A volume whose every probe is black (no light reaches any of them: a sealed level lit only by
+// the sky, probes all inside geometry) is a file of zeros; said, not left for the render to show.
+std::string blackVolumeWarning(const Volume& volume) {
+    for (size_t i = 0; i < volume.probeCount(); ++i) {
+        if (volume.probe(i).rgb[0] != glm::vec3(0.0f)) {
+            return {};
+        }
+    }
+    return "volume '" + volume.desc.name +
+           "': every probe is black: no light reaches any of them (a sealed level lit only by "
+           "its sky? every probe inside geometry?)";
+}
+
 // bake() once the config is checked and the light modes applied to `scene`.
 Result<BakeResult> bakeScene(const Scene& scene, const BakeConfig& config,
                              const BakeOptions& options,
@@ -1057,6 +1101,11 @@ Result<BakeResult> bakeScene(const Scene& scene, const BakeConfig& config,
         Result<Volume> volume = bakeVolume(run, method, descs[vi], vi, volume_configs[vi], result);
         if (!volume) {
             return volume.error();
+        }
+        // An unlit scene's volumes are black by construction, and already said to be.
+        if (std::string black = lit ? blackVolumeWarning(volume.value()) : std::string();
+            !black.empty()) {
+            result.warnings.push_back(std::move(black));
         }
         result.file.volumes.push_back(std::move(volume).value());
     }

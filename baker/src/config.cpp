@@ -669,7 +669,7 @@ const std::vector<Field<VolumeConfig>>& volumeFields() {
                   {automatic}),
         shownWhen(field("max_resolution", &VolumeConfig::maxResolution,
                         whole(1, grid::kMaxResolution).powersOfTwo(), "",
-                        "automatic resolution: cap per axis"),
+                        "automatic resolution: cap per axis", "--max-resolution"),
                   {automatic}),
         field("position", &VolumeConfig::position, choiceOf<grid::PositionMode>(), "",
               "probe placement", "--position"),

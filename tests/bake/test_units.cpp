@@ -16,24 +16,54 @@ using namespace probekit::baker;
 
 namespace {
 
-// A closed cube [lo, hi]^3, 12 triangles wound outwards (front faces outside), in open space
-// under a constant sky.
-Scene closedCube(float lo, float hi) {
-    Scene s;
+// Adds a closed box [lo, hi], 12 triangles wound outwards (front faces outside), and grows the
+// bounds.
+void addBox(Scene& s, glm::vec3 lo, glm::vec3 hi) {
+    const uint32_t first = uint32_t(s.positions.size());
     for (int i = 0; i < 8; ++i) {
-        s.positions.emplace_back(i & 1 ? hi : lo, i & 2 ? hi : lo, i & 4 ? hi : lo);
+        s.positions.emplace_back(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z);
     }
     // Each face as two triangles, counter-clockwise seen from outside.
     const glm::uvec3 tris[] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
                                {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
-    s.triangles.assign(std::begin(tris), std::end(tris));
-    s.uvs.assign(8, glm::vec2(0.0f));
-    s.triangleMaterial.assign(12, 0);
-    s.triangleNode.assign(12, -1);
+    for (const glm::uvec3& t : tris) {
+        s.triangles.push_back(t + first);
+    }
+    s.uvs.resize(s.positions.size(), glm::vec2(0.0f));
+    s.triangleMaterial.resize(s.triangles.size(), 0);
+    s.triangleNode.resize(s.triangles.size(), -1);
     s.materials.resize(1);
-    s.bounds = {glm::vec3(lo), glm::vec3(hi)};
+    s.bounds = first == 0 ? grid::Aabb{lo, hi}
+                          : grid::Aabb{glm::min(s.bounds.min, lo), glm::max(s.bounds.max, hi)};
+}
+
+void underConstantSky(Scene& s) {
     s.environment.type = Environment::Type::Constant;
     s.environment.constant = glm::vec3(1.0f);
+}
+
+// A closed cube [lo, hi]^3 in open space under a constant sky.
+Scene closedCube(float lo, float hi) {
+    Scene s;
+    addBox(s, glm::vec3(lo), glm::vec3(hi));
+    underConstantSky(s);
+    return s;
+}
+
+// A sealed level built of solid blocks, as level editors make them: in a 12 x 3 x 12 m box, a
+// floor and a ceiling slab, outer walls and a solid 9 x 9 m block leave an L-shaped corridor
+// 2.5 m wide and 2 m high, closed at both ends. Most of the box is solid, as in a real level
+// (61% of the test points of the issue's arena map).
+Scene sealedLevel() {
+    Scene s;
+    addBox(s, glm::vec3(0.0f), glm::vec3(12.0f, 0.5f, 12.0f));             // floor
+    addBox(s, glm::vec3(0.0f, 2.5f, 0.0f), glm::vec3(12.0f, 3.0f, 12.0f)); // ceiling
+    addBox(s, glm::vec3(0.0f, 0.5f, 0.0f), glm::vec3(0.5f, 2.5f, 12.0f));  // west wall
+    addBox(s, glm::vec3(0.5f, 0.5f, 0.0f), glm::vec3(12.0f, 2.5f, 0.5f));  // south wall
+    addBox(s, glm::vec3(3.0f, 0.5f, 3.0f), glm::vec3(12.0f, 2.5f, 12.0f)); // the block
+    addBox(s, glm::vec3(11.5f, 0.5f, 0.5f), glm::vec3(12.0f, 2.5f, 3.0f)); // east end
+    addBox(s, glm::vec3(0.5f, 0.5f, 11.5f), glm::vec3(3.0f, 2.5f, 12.0f)); // north end
+    underConstantSky(s);
     return s;
 }
 
@@ -101,6 +131,45 @@ TEST(AutoPadding, RoomsAndOpenScenesAreNotPadded) {
     }
 }
 
+// A sealed level seen from its solid space is most of its box "inside" by the backface rule, like
+// a closed object; padding it would put most probes outside the level (issue 29, item 7). Its
+// open test points see walls all around, which no point outside a closed object does: an
+// L-shaped object, whose notch holds open points, is still padded.
+TEST(AutoPadding, ASealedLevelIsNotTakenForAClosedObject) {
+    const Scene level = sealedLevel();
+    Result<VolumePlan> plan = planVolumes(level, BakeConfig{});
+    ASSERT_TRUE(plan.ok()) << plan.error().message;
+    EXPECT_EQ(plan.value().padding[0], 0.0f);
+    EXPECT_TRUE(anyNoteHas(plan.value().notes, "a level seen from its solid space"));
+    EXPECT_FALSE(anyNoteHas(plan.value().notes, "closed object)"));
+
+    Scene notched;
+    addBox(notched, glm::vec3(0.0f), glm::vec3(2.0f, 1.0f, 1.0f));
+    addBox(notched, glm::vec3(0.0f, 0.0f, 1.0f), glm::vec3(1.0f, 1.0f, 2.0f));
+    underConstantSky(notched);
+    Result<VolumePlan> object = planVolumes(notched, BakeConfig{});
+    ASSERT_TRUE(object.ok()) << object.error().message;
+    EXPECT_FLOAT_EQ(object.value().padding[0], kAutoPaddingGrowth * 2.0f);
+    EXPECT_TRUE(anyNoteHas(object.value().notes, "a closed object"));
+
+    // Lit only by the sky it is sealed from, the level bakes to zeros: said, not silent.
+    BakeConfig config = test::sceneVolume(16, glm::uvec3(4));
+    Result<BakeResult> dark = bake(level, config);
+    ASSERT_TRUE(dark.ok()) << dark.error().message;
+    EXPECT_TRUE(anyNoteHas(dark.value().warnings,
+                           "volume 'volume': every probe is black: no light reaches any of them"));
+    // The same level with a lamp in the corridor: no such warning.
+    Scene lit = level;
+    PunctualLight lamp;
+    lamp.type = LightType::Point;
+    lamp.position = glm::vec3(1.5f, 1.5f, 6.0f);
+    lamp.intensity = glm::vec3(10.0f);
+    lit.lights.push_back(lamp);
+    Result<BakeResult> bright = bake(lit, config);
+    ASSERT_TRUE(bright.ok()) << bright.error().message;
+    EXPECT_FALSE(anyNoteHas(bright.value().warnings, "every probe is black"));
+}
+
 TEST(UnitScale, LoadingInCentimetresScalesLengthsNotLight) {
     const auto dir = test::tempDir("unit_scale");
     ASSERT_TRUE(writeGeneratedScene("thin-wall", dir / "wall.gltf").ok());
@@ -148,26 +217,6 @@ TEST(UnitScale, AnImplausibleSizeWarnsAndNamesTheScales) {
     EXPECT_NE(w.find("in millimetres, --scale 0.001 makes it 0.5592 m"), std::string::npos) << w;
     const Scene metres = test::loadOrFail(dir / "box.gltf");
     EXPECT_TRUE(implausibleSizeWarning(metres, "box.gltf").empty());
-}
-
-// Appends the closed box [lo, hi] (12 triangles) to `s`.
-void addBox(Scene& s, glm::vec3 lo, glm::vec3 hi) {
-    const uint32_t base = uint32_t(s.positions.size());
-    for (int i = 0; i < 8; ++i) {
-        s.positions.emplace_back(i & 1 ? hi.x : lo.x, i & 2 ? hi.y : lo.y, i & 4 ? hi.z : lo.z);
-    }
-    const glm::uvec3 tris[] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
-                               {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
-    for (const glm::uvec3& t : tris) {
-        s.triangles.push_back(t + base);
-    }
-    s.uvs.resize(s.positions.size(), glm::vec2(0.0f));
-    s.triangleMaterial.resize(s.triangles.size(), 0);
-    s.triangleNode.resize(s.triangles.size(), -1);
-    s.materials.resize(1);
-    s.bounds = s.triangles.size() == 12
-                   ? grid::Aabb{lo, hi}
-                   : grid::Aabb{glm::min(s.bounds.min, lo), glm::max(s.bounds.max, hi)};
 }
 
 // A level 120 m x 40 m in metres: 12 x 4 rooms of 10 m x 3 m x 10 m, a 20 m tower and a flight

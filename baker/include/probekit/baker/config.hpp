@@ -51,6 +51,11 @@ constexpr uint32_t kAutoPaddingLattice = 4;
 constexpr uint32_t kAutoPaddingRays = 64;
 constexpr float kAutoPaddingInsideShare = 0.5f;
 constexpr float kAutoPaddingGrowth = 0.5f;
+// ... unless the box is a level seen from the solid space around its rooms (a sealed level: its
+// void is "inside" by the backface rule): at least a quarter of the test points outside
+// geometry see front faces in at least this share of their directions. Outside a closed object
+// a point sees its faces over about a hemisphere at most; in a room, walls all around.
+constexpr float kAutoPaddingEnclosedHits = 0.9f;
 
 constexpr float kDefaultDensity = 4.0f; // probes per metre
 constexpr float kMinAutoProbes = 8.0f;  // along the longest axis of an automatic grid

@@ -47,6 +47,20 @@
 //              intake and exhaust runners, pulleys, a flywheel and a harness of 200 wire
 //              segments 6 units thick (32,568 triangles); lit only by a 400 x 400 unit
 //              emissive panel 1,500 units up, radiance (8, 7.6, 7) W/(sr m^2).
+//
+// Game levels, built of closed boxes as level editors build them (level_generators.cpp):
+//   arena       A 65 m x 65 m arena (metres, x and z in -32.5..32.5, ground at y = 0): brick
+//              outer walls 8 m high; a 24 m open yard in the middle (x, z in -12..12) walled
+//              by 0.3 m moss walls 4 m high with an arch (3 m x 3.2 m) and two doors in each;
+//              eight roofed rooms (4 m, 0.3 m stone roofs) in the band around it, joined by
+//              doors; a 3 m corridor along the north wall behind doors and arches; a 5 cm
+//              partition in the south room; a 16-step stair from the yard onto the south
+//              roof; columns, a plinth, four lamp posts and 24 crates. 32 lights: two 30 W/sr
+//              points per room, four 10 W/sr in the corridor, eight 15 W/sr wall lamps and
+//              four 200 W/sr spots (cones 25 and 35 degrees) over the yard. No sky in the
+//              file: the yard and the roofs are open to the bake's environment.
+//   arena-sealed  The arena under a 0.5 m roof on its outer walls (y = 8): a closed level
+//              lit by its lights only.
 #pragma once
 
 #include <filesystem>
