@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <functional>
 #include <mutex>
+#include <new>
 #include <system_error>
 #include <thread>
 #include <vector>
@@ -31,7 +32,8 @@ inline size_t loopThreads(size_t count, uint32_t threads, size_t chunk) {
 }
 
 // Starts a thread running `entry`. The system may refuse (a process or address-space limit):
-// std::thread's constructor then throws std::system_error, and no thread exists.
+// std::thread's constructor then throws std::system_error (or std::bad_alloc for its state),
+// and no thread exists.
 inline std::thread startThread(std::function<void()> entry) {
     return std::thread(std::move(entry));
 }
@@ -51,6 +53,8 @@ size_t startThreads(size_t wanted, std::vector<std::thread>& pool, const Entry& 
         try {
             pool.push_back(threadStarter.load()([entry, t] { entry(t); }));
         } catch (const std::system_error&) {
+            break;
+        } catch (const std::bad_alloc&) {
             break;
         }
     }
@@ -76,6 +80,18 @@ void runRanges(size_t count, size_t chunk, size_t started, const Body& body, con
     std::condition_variable finished;
     size_t running = started;
     std::vector<std::thread> pool;
+    // Joins every started thread however this function is left (a body that throws on the
+    // calling thread included): a joinable std::thread must never be destroyed.
+    struct JoinAll {
+        std::vector<std::thread>& threads;
+        ~JoinAll() {
+            for (std::thread& t : threads) {
+                if (t.joinable()) {
+                    t.join();
+                }
+            }
+        }
+    } join_all{pool};
     const size_t refused = started - startThreads(started, pool, [&](size_t) {
                                work();
                                const std::lock_guard lock(mutex);
@@ -92,9 +108,6 @@ void runRanges(size_t count, size_t chunk, size_t started, const Body& body, con
     };
     caller(work, done);
     work();
-    for (std::thread& t : pool) {
-        t.join();
-    }
 }
 
 } // namespace detail
