@@ -18,6 +18,7 @@
 #include "probekit/baker/config.hpp"
 #include "probekit/baker/settings.hpp"
 #include "probekit/formats/file_io.hpp"
+#include "probekit/formats/json_nesting.hpp"
 
 namespace probekit::baker {
 
@@ -1080,11 +1081,11 @@ const std::vector<Setting>& settings() {
 
 // A command-line value as JSON: numbers and true/false as such, anything else a string.
 Json fromText(std::string_view text) {
-    Json j = Json::parse(text, nullptr, false);
-    if (j.is_discarded() || j.is_null() || j.is_object() || j.is_array()) {
+    Result<Json> j = parseJsonText<Json>(text, "value");
+    if (!j || j.value().is_null() || j.value().is_object() || j.value().is_array()) {
         return std::string(text);
     }
-    return j;
+    return std::move(j).value();
 }
 
 template <class F>
@@ -1204,16 +1205,12 @@ Result<void> validateBakeConfig(const BakeConfig& c) {
 
 Result<BakeConfig> parseBakeConfig(std::string_view json_text, std::string_view source,
                                    const std::filesystem::path& base_dir) {
-    Json j;
-    try {
-        j = Json::parse(json_text);
-    } catch (const Json::exception& e) {
-        // parse_error for syntax, out_of_range for a number beyond the double range (1e309).
-        return makeError(ErrorCode::InvalidArgument,
-                         std::string(source) + ": not valid JSON: " + e.what());
+    Result<Json> j = parseJsonText<Json>(json_text, source);
+    if (!j) {
+        return j.error();
     }
     try {
-        return parseTop(Reader(source), j, base_dir);
+        return parseTop(Reader(source), j.value(), base_dir);
     } catch (const ConfigError& e) {
         return makeError(ErrorCode::InvalidArgument, e.message);
     } catch (const Json::exception& e) {

@@ -13,6 +13,8 @@
 
 #include <cereal/archives/portable_binary.hpp>
 
+#include "probekit/formats/json_nesting.hpp"
+
 #include "posix_file.hpp"
 #include "texel_check.hpp"
 #include "xxhash64.hpp"
@@ -339,6 +341,7 @@ public:
         meta.toolVersion = readString(context, "metadata.tool_version");
         meta.method = readString(context, "metadata.method");
         meta.parametersJson = readString(context, "metadata.parameters_json");
+        checkParametersNesting(meta.parametersJson, context);
         m_archive(meta.seed, meta.sceneHash, meta.bakeSeconds);
         if (!std::isfinite(meta.bakeSeconds)) {
             fail(ErrorCode::NonFinite, context, "metadata.bake_seconds is not finite");
@@ -394,6 +397,14 @@ private:
         std::string text(size_t(length), '\0');
         m_archive(cereal::binary_data(text.data(), text.size()));
         return text;
+    }
+
+    // Every reader of the parameters parses them as JSON (probekit info, render's recorded
+    // settings), so text nested past kMaxJsonDepth is refused here, before any of them sees it.
+    static void checkParametersNesting(const std::string& json, const std::string& context) {
+        if (Result<void> nesting = checkJsonNesting(json, "metadata.parameters_json"); !nesting) {
+            fail(nesting.error().code, context, nesting.error().message);
+        }
     }
 
     // The fields of a volume's header that are checked together once all are read.

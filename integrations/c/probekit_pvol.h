@@ -17,9 +17,9 @@
  * accepts: the header (magic, version 1 or 2, header size, payload size equal to what follows),
  * the xxHash64 of the payload, then every field of the payload. Every count is checked against
  * the bytes that remain before anything is allocated, every enum against its known values,
- * every float field for finiteness, every resolution for a power of two in 1..256, the brick
- * list for a complete tiling, validity bytes for 0 or 1, and every texel for a finite value of
- * magnitude at most 1e30. A rejected file yields a status code and a message naming the volume
+ * every float field for finiteness, the parameters' JSON for nesting at most 64 levels deep,
+ * every resolution for a power of two in 1..256, the brick list for a complete tiling,
+ * validity bytes for 0 or 1, and every texel for a finite value of magnitude at most 1e30. A rejected file yields a status code and a message naming the volume
  * and the field. The file's own text (names, metadata) is kept as its bytes: escape it before
  * printing it to a terminal. The messages escape the volume name themselves.
  *
@@ -449,11 +449,52 @@ static void pkv__set_volume_context(pkv__reader* r, size_t index, const pkv_stri
              shown, name->size > n ? "..." : "");
 }
 
+/* The deepest nesting of JSON arrays and objects accepted in metadata.parameters_json, as
+ * probekit's decoder accepts it (kMaxJsonDepth, formats/include/probekit/formats/
+ * json_nesting.hpp): the readers that parse the parameters recurse once per level. Brackets
+ * are counted outside strings, without parsing. */
+#define PKV_MAX_JSON_DEPTH 64
+
+static pkv_status pkv__json_nesting(pkv__reader* r, const pkv_string* json) {
+    size_t i, depth = 0, deepest = 0, first_too_deep = 0;
+    int in_string = 0;
+    for (i = 0; i < json->size; ++i) {
+        const char c = json->data[i];
+        if (in_string) {
+            if (c == '\\') {
+                ++i; /* the escaped character cannot end the string */
+            } else if (c == '"') {
+                in_string = 0;
+            }
+        } else if (c == '"') {
+            in_string = 1;
+        } else if (c == '[' || c == '{') {
+            if (++depth > deepest) {
+                deepest = depth;
+                if (depth == PKV_MAX_JSON_DEPTH + 1) {
+                    first_too_deep = i;
+                }
+            }
+        } else if ((c == ']' || c == '}') && depth > 0) {
+            --depth;
+        }
+    }
+    if (deepest > PKV_MAX_JSON_DEPTH) {
+        return pkv__fail(r, PKV_ERROR_OUT_OF_RANGE,
+                         "metadata.parameters_json: JSON arrays and objects nest %llu levels "
+                         "deep (level %d opens at byte %llu), more than the limit of %d",
+                         (unsigned long long)deepest, PKV_MAX_JSON_DEPTH + 1,
+                         (unsigned long long)first_too_deep, PKV_MAX_JSON_DEPTH);
+    }
+    return PKV_OK;
+}
+
 static pkv_status pkv__metadata(pkv__reader* r, pkv_metadata* meta) {
     uint64_t bake_bits;
     PKV__TRY(pkv__string(r, &meta->tool_version, "metadata.tool_version length"));
     PKV__TRY(pkv__string(r, &meta->method, "metadata.method length"));
     PKV__TRY(pkv__string(r, &meta->parameters_json, "metadata.parameters_json length"));
+    PKV__TRY(pkv__json_nesting(r, &meta->parameters_json));
     PKV__TRY(pkv__u64(r, &meta->seed, "metadata.seed"));
     PKV__TRY(pkv__u64(r, &meta->scene_hash, "metadata.scene_hash"));
     PKV__TRY(pkv__u64(r, &bake_bits, "metadata.bake_seconds"));

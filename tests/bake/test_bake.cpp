@@ -90,6 +90,29 @@ TEST(BakeConfig, ErrorsNameFileAndField) {
     test::expectConfigErrors(cases);
 }
 
+// Issue 31: a config nested 100000 levels deep is refused before it is parsed, naming the file
+// (from text and from a file on disk), instead of overflowing the stack in what walks it.
+TEST(BakeConfig, NestingBeyondTheJsonDepthLimitIsRefused) {
+    std::string deep = "{\"volumes\": ";
+    deep.append(100000, '[');
+    deep.append(100000, ']');
+    deep += '}';
+    const Result<BakeConfig> from_text = parseBakeConfig(deep, "bake.json");
+    ASSERT_FALSE(from_text.ok());
+    EXPECT_EQ(from_text.error().message,
+              "bake.json: JSON arrays and objects nest 100001 levels deep (level 65 opens at byte "
+              "75), more than the limit of 64");
+    const std::filesystem::path dir = test::tempDir("deep_config");
+    const std::filesystem::path file = dir / "deep.json";
+    std::ofstream(file) << deep;
+    const Result<BakeConfig> from_file = loadBakeConfig(file);
+    ASSERT_FALSE(from_file.ok());
+    std::string expected = file.string();
+    expected += ": JSON arrays and objects nest 100001 levels deep";
+    EXPECT_TRUE(from_file.error().message.starts_with(expected)) << from_file.error().message;
+    std::filesystem::remove_all(dir);
+}
+
 // Names and paths in a config built in code are bytes; the description recorded in the file is
 // JSON, so bytes that are not UTF-8 become U+FFFD instead of a json::type_error thrown from
 // inside bake() (found while fixing issue 17's invalid UTF-8 in `probekit info`).

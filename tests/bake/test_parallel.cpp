@@ -2,6 +2,8 @@
 // reports, which run on the calling thread while the loop's threads bake (BakeOptions::progress).
 #include <atomic>
 #include <chrono>
+#include <functional>
+#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -9,6 +11,7 @@
 
 #include "bake_test_support.hpp"
 #include "probekit/baker/bake.hpp"
+#include "probekit/baker/bench_rays.hpp"
 #include "probekit/formats/pvol.hpp"
 #include "trace/parallel.hpp"
 
@@ -25,6 +28,41 @@ std::vector<int> hits(const std::vector<std::atomic<int>>& counters) {
     }
     return out;
 }
+
+// One 4 x 4 x 2 volume (32 probes, 8 of the bake's ranges of 4) at 16 samples.
+BakeConfig smallConfig() {
+    BakeConfig c;
+    c.path.samples = 16;
+    VolumeConfig v;
+    v.resolution = glm::uvec3(4, 4, 2);
+    c.volumes = {v};
+    return c;
+}
+
+std::atomic<size_t> g_threads_allowed{0};
+std::atomic<size_t> g_thread_starts{0};
+
+// Starts the first g_threads_allowed threads asked for, then refuses as std::thread does when
+// the system is at its process limit (EAGAIN).
+std::thread refusingStarter(std::function<void()> entry) {
+    if (g_thread_starts.fetch_add(1) >= g_threads_allowed) {
+        throw std::system_error(std::make_error_code(std::errc::resource_unavailable_try_again),
+                                "test: thread refused");
+    }
+    return std::thread(std::move(entry));
+}
+
+// For its lifetime, the loops' threads come from refusingStarter with `allowed` threads.
+struct RefuseThreadsAfter {
+    explicit RefuseThreadsAfter(size_t allowed) {
+        g_threads_allowed = allowed;
+        g_thread_starts = 0;
+        detail::threadStarter = &refusingStarter;
+    }
+    ~RefuseThreadsAfter() { detail::threadStarter = &detail::startThread; }
+    RefuseThreadsAfter(const RefuseThreadsAfter&) = delete;
+    RefuseThreadsAfter& operator=(const RefuseThreadsAfter&) = delete;
+};
 
 } // namespace
 
@@ -78,11 +116,7 @@ TEST(ParallelLoop, WatchedLoopWatchesOnTheCallingThreadOnly) {
 // asking for it changes nothing in the bake's output.
 TEST(BakeProgressReports, FromTheCallingThreadEndingAtTheTotalWithTheSameOutput) {
     const Scene scene = test::generatedScene("cornell");
-    BakeConfig c;
-    c.path.samples = 16;
-    VolumeConfig v;
-    v.resolution = glm::uvec3(4, 4, 2);
-    c.volumes = {v};
+    const BakeConfig c = smallConfig();
     const std::thread::id caller = std::this_thread::get_id();
     std::vector<BakeProgress> reports;
     bool reported_elsewhere = false;
@@ -129,4 +163,78 @@ TEST(BakeProgressReports, TheTotalCoversEveryVolumeFromTheFirstReport) {
         EXPECT_GE(reports[i].probesTotal, reports[i - 1].probesTotal) << i;
     }
     EXPECT_EQ(reports.back().probesTotal, r.value().stats.probes);
+}
+
+// When the system refuses threads (a process or address-space limit), both loops run on the
+// threads that did start and the calling thread: every index still exactly once, no abort.
+TEST(ParallelLoop, EveryIndexExactlyOnceWhenThreadsCannotBeStarted) {
+    for (const size_t allowed : {size_t(0), size_t(1)}) {
+        const RefuseThreadsAfter refuse(allowed);
+        std::vector<std::atomic<int>> plain(1000), watched(1000);
+        parallelFor(plain.size(), 4, 7, [&](size_t begin, size_t end) {
+            for (size_t i = begin; i < end; ++i) {
+                plain[i].fetch_add(1);
+            }
+        });
+        // 3 threads asked for beyond the caller: `allowed` started, one refused.
+        EXPECT_EQ(g_thread_starts.load(), allowed + 1) << allowed;
+        g_thread_starts = 0;
+        int watches = 0;
+        parallelForWatched(
+            watched.size(), 4, 7,
+            [&](size_t begin, size_t end) {
+                for (size_t i = begin; i < end; ++i) {
+                    watched[i].fetch_add(1);
+                }
+            },
+            std::chrono::milliseconds(1), [&] { ++watches; });
+        EXPECT_EQ(g_thread_starts.load(), allowed + 1) << allowed;
+        EXPECT_GE(watches, 1);
+        const std::vector<int> once(1000, 1);
+        EXPECT_EQ(hits(plain), once) << allowed;
+        EXPECT_EQ(hits(watched), once) << allowed;
+    }
+}
+
+// A bake whose threads the system refuses gives the file a normal bake gives, with and
+// without progress reports (the watched loop).
+TEST(ParallelLoop, BakeIsIdenticalWhenThreadsCannotBeStarted) {
+    const Scene scene = test::generatedScene("cornell");
+    const BakeConfig c = smallConfig();
+    BakeOptions options;
+    options.threads = 4;
+    Result<BakeResult> normal = bake(scene, c, options);
+    ASSERT_TRUE(normal.ok()) << normal.error().message;
+    for (const size_t allowed : {size_t(0), size_t(1)}) {
+        const RefuseThreadsAfter refuse(allowed);
+        Result<BakeResult> plain = bake(scene, c, options);
+        BakeOptions watched = options;
+        size_t reports = 0;
+        watched.progress = [&](const BakeProgress&) { ++reports; };
+        Result<BakeResult> with_progress = bake(scene, c, watched);
+        ASSERT_TRUE(plain.ok() && with_progress.ok()) << allowed;
+        EXPECT_GT(g_thread_starts.load(), allowed) << "the refusing starter was not used";
+        EXPECT_GE(reports, 1u);
+        test::expectSameFileButTiming(normal.value(), plain.value());
+        test::expectSameFileButTiming(normal.value(), with_progress.value());
+    }
+}
+
+// bench-rays traces on the threads that started, reporting how many and their rays; with none
+// it fails with a message instead of aborting.
+TEST(ParallelLoop, BenchRaysRunsOnTheThreadsThatStarted) {
+    const Scene scene = test::generatedScene("cornell");
+    {
+        const RefuseThreadsAfter refuse(2);
+        Result<RayThroughput> r = measureRayThroughput(scene, 3001, 3);
+        ASSERT_TRUE(r.ok()) << r.error().message;
+        EXPECT_EQ(r.value().threads, 2u);
+        EXPECT_EQ(r.value().rays, 2001u); // 1001 + 1000: the refused third thread's 1000 left out
+        EXPECT_GT(r.value().closestHitMraysPerSec, 0.0);
+    }
+    const RefuseThreadsAfter refuse(0);
+    Result<RayThroughput> none = measureRayThroughput(scene, 3001, 3);
+    ASSERT_FALSE(none.ok());
+    EXPECT_NE(none.error().message.find("refused to start a thread"), std::string::npos)
+        << none.error().message;
 }

@@ -2,8 +2,13 @@
 // placeholder volume) and on the dynamic GI (lights and sun, sky SH, cascades). CPU only: what
 // the renderer then draws is tested against its CPU twins in tests/gpu.
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "bake_test_support.hpp"
 #include "probekit/viewer/scene_gi.hpp"
@@ -197,21 +202,24 @@ TEST(ViewerEnvironment, SpecsAreReadAsBakeReadsThem) {
 TEST(ViewerEnvironment, RecordedSettingsGiveTheBakesEnvironmentOrBlackWithAWarning) {
     std::string warning;
     BakeMetadata metadata;
+    // The working directory, where "gone.exr" below would be.
+    const std::vector<std::filesystem::path> roots = {std::filesystem::current_path()};
     metadata.parametersJson = R"({"path": {"samples": 64}})";
-    Result<Environment> unrecorded = viewer::recordedEnvironment(metadata, "v.pvol", warning);
+    Result<Environment> unrecorded =
+        viewer::recordedEnvironment(metadata, "v.pvol", roots, warning);
     ASSERT_TRUE(unrecorded.ok());
     EXPECT_TRUE(unrecorded.value().isBlack());
     EXPECT_TRUE(warning.empty());
 
     metadata.parametersJson = R"({"environment": {"type": "constant", "radiance": [1, 2, 3]}})";
-    Result<Environment> constant = viewer::recordedEnvironment(metadata, "v.pvol", warning);
+    Result<Environment> constant = viewer::recordedEnvironment(metadata, "v.pvol", roots, warning);
     ASSERT_TRUE(constant.ok()) << constant.error().message;
     EXPECT_EQ(constant.value().radiance(glm::vec3(1, 0, 0)), glm::vec3(1.0f, 2.0f, 3.0f));
     EXPECT_TRUE(warning.empty());
 
     // A recorded file that is gone: black, and the warning names it.
     metadata.parametersJson = R"({"environment": {"type": "latlong", "file": "gone.exr"}})";
-    Result<Environment> gone = viewer::recordedEnvironment(metadata, "v.pvol", warning);
+    Result<Environment> gone = viewer::recordedEnvironment(metadata, "v.pvol", roots, warning);
     ASSERT_TRUE(gone.ok());
     EXPECT_TRUE(gone.value().isBlack());
     EXPECT_NE(warning.find("gone.exr"), std::string::npos) << warning;
@@ -219,9 +227,91 @@ TEST(ViewerEnvironment, RecordedSettingsGiveTheBakesEnvironmentOrBlackWithAWarni
     // A record that is not a valid environment is an error naming the .pvol.
     warning.clear();
     metadata.parametersJson = R"({"environment": {"type": "sunny"}})";
-    Result<Environment> bad = viewer::recordedEnvironment(metadata, "v.pvol", warning);
+    Result<Environment> bad = viewer::recordedEnvironment(metadata, "v.pvol", roots, warning);
     ASSERT_FALSE(bad.ok());
     EXPECT_NE(bad.error().message.find("v.pvol"), std::string::npos) << bad.error().message;
+}
+
+// A 2 x 1 grey PFM lat-long map of radiance `value` everywhere.
+void writeGreyPfm(const std::filesystem::path& path, float value) {
+    const std::string header = "Pf\n2 1\n-1.0\n";
+    const float texels[2] = {value, value};
+    std::ofstream out(path, std::ios::binary);
+    out.write(header.data(), std::streamsize(header.size()));
+    out.write(reinterpret_cast<const char*>(texels), sizeof texels);
+}
+
+// Settings recording a lat-long environment `file`.
+BakeMetadata recordingEnvironment(const std::string& file) {
+    BakeMetadata m;
+    nlohmann::json settings;
+    settings["environment"] = {{"type", "latlong"}, {"file", file}};
+    m.parametersJson = settings.dump();
+    return m;
+}
+
+// Issue 31: a .pvol is untrusted, so the environment file it records is opened only under the
+// allowed folders (render: the scene's and the .pvol's). Outside them, by an absolute path, by
+// `..` or through a link, nothing is opened: black, as without a record, and a warning naming
+// the file. Inside, the map loads.
+TEST(ViewerEnvironment, RecordedFilesOutsideTheAllowedFoldersAreNotOpened) {
+    const std::filesystem::path dir = test::tempDir("viewer_env_rule");
+    std::filesystem::create_directories(dir / "scene");
+    std::filesystem::create_directories(dir / "outside");
+    writeGreyPfm(dir / "scene" / "sky.pfm", 3.0f);
+    writeGreyPfm(dir / "outside" / "sky.pfm", 5.0f);
+    std::filesystem::create_symlink(dir / "outside" / "sky.pfm", dir / "scene" / "link.pfm");
+    const std::vector<std::filesystem::path> roots = {dir / "scene"};
+
+    std::string warning;
+    Result<Environment> inside = viewer::recordedEnvironment(
+        recordingEnvironment((dir / "scene" / "sky.pfm").string()), "v.pvol", roots, warning);
+    ASSERT_TRUE(inside.ok()) << inside.error().message;
+    // The 2 x 1 map is 3 everywhere; bilinear weights summing to 1 round within a few ulps.
+    const glm::vec3 seen = inside.value().radiance(glm::vec3(1, 0, 0));
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(seen[c], 3.0f, 1e-5f) << c;
+    }
+    EXPECT_TRUE(warning.empty()) << warning;
+
+    const std::string outside_files[] = {
+        (dir / "outside" / "sky.pfm").string(),                  // absolute, outside
+        (dir / "scene" / ".." / "outside" / "sky.pfm").string(), // `..` out of the folder
+        "../../outside/sky.pfm",               // relative to the working directory
+        (dir / "scene" / "link.pfm").string(), // a link inside pointing out
+        "/etc/passwd",
+    };
+    for (const std::string& file : outside_files) {
+        warning.clear();
+        Result<Environment> refused =
+            viewer::recordedEnvironment(recordingEnvironment(file), "v.pvol", roots, warning);
+        ASSERT_TRUE(refused.ok()) << file << ": " << refused.error().message;
+        EXPECT_TRUE(refused.value().isBlack()) << file;
+        EXPECT_EQ(refused.value().radiance(glm::vec3(1, 0, 0)), glm::vec3(0.0f)) << file;
+        std::string expected = "v.pvol: environment file ";
+        expected += file;
+        expected += " recorded in the volume is outside the scene folder; not opened (pass --env "
+                    "to use it)";
+        EXPECT_TRUE(warning.starts_with(expected)) << warning;
+    }
+    std::filesystem::remove_all(dir);
+}
+
+// Settings nested past the JSON depth limit are an error naming the source, not a crash.
+TEST(ViewerScene, DeeplyNestedSettingsAreAnErrorNamingTheSource) {
+    BakeMetadata m;
+    m.parametersJson.assign(100000, '[');
+    m.parametersJson.append(100000, ']');
+    std::string warning;
+    const Result<Environment> env = viewer::recordedEnvironment(m, "deep.pvol", {}, warning);
+    ASSERT_FALSE(env.ok());
+    EXPECT_TRUE(env.error().message.starts_with("deep.pvol: JSON arrays and objects nest 100000"))
+        << env.error().message;
+    const Result<viewer::LightSelection> lights =
+        viewer::directLights(baker::Scene{}, m, "deep.pvol");
+    ASSERT_FALSE(lights.ok());
+    EXPECT_TRUE(lights.error().message.starts_with("deep.pvol: JSON arrays and objects nest"))
+        << lights.error().message;
 }
 
 // The dynamic GI's lights: with a volume only the directional ones (the volume holds the

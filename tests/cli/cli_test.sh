@@ -386,6 +386,12 @@ check "info prints no control bytes" bash -c '! "$1" info "$2" 2>&1 | LC_ALL=C g
 check "info --json prints no control bytes" bash -c \
     '! "$1" info "$2" --json 2>&1 | LC_ALL=C grep -qE "$3"' _ "$pk" "$hostile/escapes.pvol" "$controls"
 expect 0 "valid \(1 volume" -- "$pk" validate "$hostile/escapes.pvol"
+# Parameters nested 100000 levels deep (issue 31): refused by the reader, naming the file and
+# the field, in every command; before, info and render died of a stack overflow (SIGSEGV).
+deep_message="deep-parameters.pvol: metadata.parameters_json: JSON arrays and objects nest 100000 levels deep \(level 65 opens at byte 64\), more than the limit of 64"
+expect 1 "$deep_message" -- "$pk" info "$hostile/deep-parameters.pvol"
+expect 1 "$deep_message" -- "$pk" info "$hostile/deep-parameters.pvol" --json
+expect 1 "$deep_message" -- "$pk" validate "$hostile/deep-parameters.pvol"
 
 # Texels: NaN, infinity and magnitudes over 1e30 are rejected, naming probe, plane and value;
 # the volume name in the message is escaped too.

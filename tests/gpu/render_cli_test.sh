@@ -8,6 +8,7 @@ pk=$1
 work=$2
 # shellcheck source=../cli/expect.sh
 source "$(cd "$(dirname "$0")/../cli" && pwd)/expect.sh" || exit 1
+hostile="$(cd "$(dirname "$0")/../data/hostile" && pwd)" || exit 1
 rm -rf "$work" && mkdir -p "$work" && cd "$work" || exit 1
 
 "$pk" scene cornell -o cornell.gltf >/dev/null || exit 1
@@ -40,6 +41,33 @@ expect 0 "probes: drew [0-9]+ of 64 .*budget 12," -- "$pk" render cornell.gltf v
 expect 1 "--env.*radiance" -- "$pk" render cornell.gltf volume.pvol -o bad.png --env -1,0,0
 check "no output from a bad --env" test ! -e bad.png
 expect 1 "missing.hdr" -- "$pk" render cornell.gltf volume.pvol -o bad.png --env missing.hdr
+# Issue 31: a .pvol is untrusted. Nested past the JSON depth limit it is refused naming the file
+# and the field; the environment file it records is opened only under the scene's folder or
+# the .pvol's: outside, the render warns, opens nothing and draws the black background.
+expect 1 "deep-parameters.pvol: metadata.parameters_json: JSON arrays and objects nest 100000" -- \
+    "$pk" render cornell.gltf "$hostile/deep-parameters.pvol" -o deep.png
+check "no output from a refused volume" test ! -e deep.png
+mkdir -p scene outside
+printf 'Pf\n2 1\n-1.0\n' >grey.header
+for d in scene outside; do
+    { cat grey.header; printf '\000\000\100\100\000\000\100\100'; } >"$d/sky.pfm" # 3.0f twice
+done
+"$pk" scene cornell -o scene/cornell.gltf >/dev/null || exit 1
+"$pk" bake scene/cornell.gltf -o scene/inside.pvol --resolution 2,2,2 --samples 16 \
+    --env "$PWD/scene/sky.pfm" >/dev/null || exit 1
+"$pk" bake scene/cornell.gltf -o scene/outside.pvol --resolution 2,2,2 --samples 16 \
+    --env "$PWD/outside/sky.pfm" >/dev/null || exit 1
+expect 0 "outside.pvol \(its recorded bake settings\): environment file $PWD/outside/sky.pfm recorded in the volume is outside the scene folder; not opened \(pass --env to use it\)" -- \
+    "$pk" render scene/cornell.gltf scene/outside.pvol -o refused.png --size 32,24 --fixed-exposure
+"$pk" render scene/cornell.gltf scene/outside.pvol -o black.png --size 32,24 --fixed-exposure \
+    --env none >/dev/null 2>&1
+check "the refused environment renders as the black background" cmp refused.png black.png
+check "an environment inside the scene folder loads, without a warning" bash -c \
+    '! "$1" render scene/cornell.gltf scene/inside.pvol -o inside.png --size 32,24 \
+    --fixed-exposure 2>&1 | grep -q "outside the scene folder"' _ "$pk"
+"$pk" render scene/cornell.gltf scene/inside.pvol -o inside-black.png --size 32,24 \
+    --fixed-exposure --env none >/dev/null 2>&1
+check "the environment inside the scene folder is drawn" bash -c '! cmp -s inside.png inside-black.png'
 expect 2 "" -- "$pk" render cornell.gltf volume.pvol -o x.png --camera-from z
 
 # A bricked bake renders in every view; the probes view colours probes by brick level.

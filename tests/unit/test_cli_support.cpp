@@ -12,6 +12,7 @@
 
 #include "info_format.hpp"
 #include "points_csv.hpp"
+#include "probekit/formats/json_nesting.hpp"
 #include "probekit/formats/pvol.hpp"
 #include "terminal_text.hpp"
 
@@ -140,6 +141,53 @@ TEST(InfoFormat, EscapesNamesAndMetadataThatAreNotSafeToPrint) {
     EXPECT_EQ(parsed["volumes"][0]["name"], "\x1b]0;pwned\x07\x1b[2J\xc2\x9b\xef\xbf\xbd");
     EXPECT_EQ(parsed["metadata"]["parameters"], "{\"note\": \"\xef\xbf\xbd\xef\xbf\xbd\x1b[5m\"}");
     EXPECT_EQ(parsed["file_bytes"], bytes.size());
+}
+
+// Issue 31: the reader refuses tests/data/hostile/deep-parameters.pvol (parameters nested
+// 100000 levels deep) naming the file and the field; a file built in code with such parameters
+// is shown with them as a string (no recursion over them, output linear in their size) instead
+// of overflowing the stack or printing indent x depth spaces per line.
+TEST(InfoFormat, DeeplyNestedParametersAreRefusedOrShownAsText) {
+    const std::vector<uint8_t> bytes = readHostile("deep-parameters.pvol");
+    const Result<PvolFile> refused = decodePvol(bytes, "deep-parameters.pvol");
+    ASSERT_FALSE(refused.ok());
+    EXPECT_EQ(refused.error().message,
+              "deep-parameters.pvol: metadata.parameters_json: JSON arrays and objects nest "
+              "100000 levels deep (level 65 opens at byte 64), more than the limit of 64");
+
+    PvolFile file;
+    file.metadata.parametersJson.assign(100000, '[');
+    file.metadata.parametersJson.append(100000, ']');
+    const Result<std::string> json = formatInfo(file, "built.pvol", 0, true);
+    ASSERT_TRUE(json.ok()) << json.error().message;
+    EXPECT_LT(json.value().size(), 300000u); // the 200,000 bytes as one string, plus the rest
+    const nlohmann::json parsed = nlohmann::json::parse(json.value());
+    EXPECT_EQ(parsed["metadata"]["parameters"], file.metadata.parametersJson);
+}
+
+// The one parse of untrusted JSON text: nesting up to kMaxJsonDepth (64) parses, deeper is
+// refused before parsing, and each error names its source.
+TEST(JsonText, NestingIsLimitedAndErrorsNameTheSource) {
+    std::string at_limit(64, '[');
+    at_limit.append(64, ']');
+    const Result<nlohmann::json> ok = parseJsonText<nlohmann::json>(at_limit, "cfg.json");
+    ASSERT_TRUE(ok.ok()) << ok.error().message;
+    EXPECT_TRUE(ok.value().is_array());
+
+    std::string deeper = "{\"a\": ";
+    deeper.append(64, '{');
+    const Result<nlohmann::json> deep = parseJsonText<nlohmann::json>(deeper, "cfg.json");
+    ASSERT_FALSE(deep.ok());
+    EXPECT_EQ(deep.error().code, ErrorCode::OutOfRange);
+    EXPECT_EQ(deep.error().message,
+              "cfg.json: JSON arrays and objects nest 65 levels deep (level 65 opens at byte 69), "
+              "more than the limit of 64");
+
+    const Result<nlohmann::json> bad = parseJsonText<nlohmann::json>("{\"a\": }", "cfg.json");
+    ASSERT_FALSE(bad.ok());
+    EXPECT_EQ(bad.error().code, ErrorCode::InvalidArgument);
+    EXPECT_TRUE(bad.error().message.starts_with("cfg.json: not valid JSON: "))
+        << bad.error().message;
 }
 
 TEST(InfoFormat, AnInvalidVolumeGivesAnErrorNotACrash) {

@@ -1667,6 +1667,21 @@ const std::filesystem::path kHostileDir = std::filesystem::path(PROBEKIT_TEST_DA
 // parameters are not valid UTF-8, so they are not JSON either.
 constexpr const char* kEscapeName = "\x1b]0;pwned\x07\x1b[2J\xc2\x9b\xff";
 
+// `depth` arrays, each holding the next: "[[[...]]]".
+std::string deeplyNested(size_t depth) {
+    std::string text(depth, '[');
+    text.append(depth, ']');
+    return text;
+}
+
+// {"a": <value>}, built by appending (a GCC 12 -Wrestrict false positive under operator+).
+std::string underKeyA(const std::string& value) {
+    std::string text = "{\"a\": ";
+    text += value;
+    text += '}';
+    return text;
+}
+
 struct HostileFile {
     const char* fileName;
     std::vector<uint8_t> bytes;
@@ -1716,6 +1731,16 @@ std::vector<HostileFile> hostileFiles() {
     files.push_back({"huge-texel.pvol", hostileBytes("huge", Storage::Float32, 0, 3e38f, 0)});
     files.push_back({"inf-half.pvol",
                      hostileBytes("inf-half", Storage::Float16, 4 * (2 * 8 + 7) + 3, 0, 0x7c00)});
+    {
+        // Issue 31: parameters nested 100000 levels deep (200 KB) overflowed the stack of every
+        // command that parsed them (info, render) and made info --json print gigabytes.
+        PvolFile file;
+        file.metadata = testMetadata();
+        file.metadata.parametersJson = deeplyNested(100000);
+        file.volumes.push_back(
+            buildVolume({.name = "deep", .resolution = {2, 2, 2}, .order = Order::L1}).volume);
+        files.push_back({"deep-parameters.pvol", encodePvol(file)});
+    }
     return files;
 }
 
@@ -1752,6 +1777,37 @@ TEST_F(PvolHostileReject, DataDecodesAsTheCliTestExpects) {
     expectRejected(files[3].bytes, ErrorCode::NonFinite,
                    std::string(kSource) + ": volume 0 ('inf-half'): probe 7 (plane 2, component "
                                           "3) holds inf; every texel must be finite");
+    expectRejected(files[4].bytes, ErrorCode::OutOfRange,
+                   std::string(kSource) + ": metadata.parameters_json: JSON arrays and objects "
+                                          "nest 100000 levels deep (level 65 opens at byte 64), "
+                                          "more than the limit of 64");
+}
+
+// The parameters' nesting is held to kMaxJsonDepth (64) levels, counted outside strings: 64
+// levels read, 65 are refused, and brackets inside a string (escaped quotes included) are
+// text, not nesting.
+TEST_F(PvolHostileReject, ParametersNestedDeeperThanTheLimitAreRefused) {
+    PvolFile file;
+    file.metadata = testMetadata();
+    file.volumes.push_back(
+        buildVolume({.name = "v", .resolution = {2, 2, 2}, .order = Order::L1}).volume);
+    file.metadata.parametersJson = underKeyA(deeplyNested(63));
+    const Result<PvolFile> at_limit = decode(encodePvol(file));
+    ASSERT_TRUE(at_limit.ok()) << at_limit.error().message;
+    EXPECT_EQ(at_limit.value().metadata.parametersJson, file.metadata.parametersJson);
+
+    std::string quoted = "\"\\\""; // a string that starts with an escaped quote
+    quoted.append(1000, '[');
+    quoted += '"';
+    file.metadata.parametersJson = underKeyA(quoted);
+    const Result<PvolFile> in_string = decode(encodePvol(file));
+    ASSERT_TRUE(in_string.ok()) << in_string.error().message;
+
+    file.metadata.parametersJson = underKeyA(deeplyNested(64));
+    expectRejected(encodePvol(file), ErrorCode::OutOfRange,
+                   std::string(kSource) + ": metadata.parameters_json: JSON arrays and objects "
+                                          "nest 65 levels deep (level 65 opens at byte 69), more "
+                                          "than the limit of 64");
 }
 
 // --- special files: only regular files are read ------------------------------------------------

@@ -14,6 +14,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "probekit/formats/json_nesting.hpp"
+
 #include "camera_options.hpp"
 #include "commands.hpp"
 #include "config_options.hpp"
@@ -321,11 +323,14 @@ Result<void> checkReference(const PvolFile& ref, const std::vector<VolumeDesc>& 
 }
 
 uint32_t referenceSamplesOf(const PvolFile& ref) {
-    const auto j = nlohmann::json::parse(ref.metadata.parametersJson, nullptr, false);
-    if (j.is_discarded() || !j.contains("path") || !j["path"].contains("samples")) {
+    const Result<nlohmann::json> parsed =
+        parseJsonText<nlohmann::json>(ref.metadata.parametersJson, "parameters");
+    const nlohmann::json::json_pointer samples("/path/samples");
+    if (!parsed || !parsed.value().contains(samples) ||
+        !parsed.value().at(samples).is_number_unsigned()) {
         return 0;
     }
-    return j["path"]["samples"].get<uint32_t>();
+    return parsed.value().at(samples).get<uint32_t>();
 }
 
 std::string csvField(const std::string& s) {

@@ -234,15 +234,26 @@ Result<runtime::GpuVolumeSet> uploadVolumes(runtime::GpuContext& gpu,
 
 // The environment drawn behind the geometry: --env (R,G,B constant radiance, a lat-long FILE,
 // or none), else the one the volumes were baked with as the .pvol's settings record it (none
-// when they record none, or a file that no longer loads: a warning). Both go through the bake
+// when they record none; black with a warning for a file outside the scene's folder and the
+// .pvol's, or one that no longer loads). Both go through the bake
 // config's own parsing, so --env means here what it means to probekit bake.
 Result<Environment> chooseEnvironment(const RenderOptions& o, const BakeMetadata& metadata) {
     if (o.env) {
         return viewer::environmentFromSpec(*o.env, "--env");
     }
+    // The .pvol is untrusted: the file it records is opened only in the scene's folder or its
+    // own (ARCHITECTURE.md, the folder rule).
+    std::vector<std::filesystem::path> roots;
+    for (const std::string& chosen : {o.scene, o.volumes}) {
+        std::error_code ec;
+        const std::filesystem::path file = std::filesystem::absolute(chosen, ec);
+        if (!chosen.empty() && !ec) {
+            roots.push_back(file.parent_path());
+        }
+    }
     std::string warning;
-    Result<Environment> recorded =
-        viewer::recordedEnvironment(metadata, o.volumes + " (its recorded bake settings)", warning);
+    Result<Environment> recorded = viewer::recordedEnvironment(
+        metadata, o.volumes + " (its recorded bake settings)", roots, warning);
     if (!warning.empty()) {
         printError("render", "warning: " + warning);
     }

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -137,13 +138,15 @@ public:
 private:
     // Rank 0: a thread hands chunks to the other ranks as they ask and stores their results,
     // while this thread bakes chunks from the same counter. Only that thread calls MPI until it
-    // is joined (MPI_THREAD_SERIALIZED).
+    // is joined (MPI_THREAD_SERIALIZED). When the system refuses that thread, this thread bakes
+    // every chunk and then serves the other ranks, who are told there is nothing left: the
+    // same results, computed on one rank.
     baker::ProbeChunkStats coordinate(size_t count, size_t chunk, std::span<sh::ShRgb> sh,
                                       std::span<uint8_t> valid, const Compute& compute) {
         const size_t chunks = (count + chunk - 1) / chunk;
         std::atomic<size_t> next{0};
         baker::ProbeChunkStats remote;
-        std::thread coordinator([&] {
+        const auto serve = [&] {
             int active = m_size - 1;
             std::vector<char> buffer;
             while (active > 0) {
@@ -184,14 +187,24 @@ private:
                          MPI_COMM_WORLD);
                 m_traffic.controlBytes += sizeof a;
             }
-        });
+        };
+        std::thread coordinator;
+        try {
+            coordinator = std::thread(serve);
+        } catch (const std::system_error&) {
+            // No coordinator: the loop below takes every chunk, serve() then runs here.
+        }
         baker::ProbeChunkStats local;
         uint64_t local_chunks = 0; // the coordinator counts the others' in m_traffic
         for (size_t i = next.fetch_add(1); i < chunks; i = next.fetch_add(1)) {
             local += compute(i * chunk, std::min(count, (i + 1) * chunk));
             ++local_chunks;
         }
-        coordinator.join();
+        if (coordinator.joinable()) {
+            coordinator.join();
+        } else {
+            serve();
+        }
         m_traffic.chunks += local_chunks;
         local += remote;
         return local;

@@ -7,6 +7,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "probekit/formats/json_nesting.hpp"
+
 #include "terminal_text.hpp"
 
 namespace probekit::cli {
@@ -67,13 +69,14 @@ nlohmann::json describe(const PvolFile& file, std::string_view source, uint64_t 
     j["file"] = std::string(source);
     j["file_bytes"] = file_bytes;
     const BakeMetadata& m = file.metadata;
-    nlohmann::json params = nlohmann::json::parse(m.parametersJson, nullptr, false);
+    // Parameters that are not JSON are shown as the string they are.
+    Result<nlohmann::json> params = parseJsonText<nlohmann::json>(m.parametersJson, "parameters");
     char hash[17];
     std::snprintf(hash, sizeof hash, "%016llx", static_cast<unsigned long long>(m.sceneHash));
     j["metadata"] = {
         {"tool_version", m.toolVersion},
         {"method", m.method},
-        {"parameters", params.is_discarded() ? nlohmann::json(m.parametersJson) : params},
+        {"parameters", params ? std::move(params).value() : nlohmann::json(m.parametersJson)},
         {"seed", m.seed},
         {"scene_hash", hash},
         // 0 in files baked since bake seconds left the file (docs/format.md#the-pvol-format).

@@ -6,14 +6,17 @@
 #include <cmath>
 #include <cstdio>
 #include <iterator>
+#include <optional>
 
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <nlohmann/json.hpp>
 
 #include "probekit/baker/config.hpp"
+#include "probekit/baker/folder_rule.hpp"
 #include "probekit/baker/light_modes.hpp"
 #include "probekit/baker/light_visibility.hpp"
+#include "probekit/formats/json_nesting.hpp"
 
 namespace probekit::viewer {
 namespace {
@@ -57,6 +60,31 @@ Result<baker::EnvironmentConfig> parseEnvironment(const nlohmann::json& env,
         return config.error();
     }
     return config.value().environment;
+}
+
+// The section `key` of the bake settings `metadata` records, read alone as `probekit bake`
+// reads a config holding only it: std::nullopt when the settings are not a JSON object or hold
+// no such section. Errors name `source`: a section that is not valid settings, and settings
+// nested past kMaxJsonDepth (which readPvol already refuses).
+Result<std::optional<baker::BakeConfig>>
+recordedSection(const BakeMetadata& metadata, const std::string& key, const std::string& source) {
+    Result<nlohmann::json> recorded =
+        parseJsonText<nlohmann::json>(metadata.parametersJson, source);
+    if (!recorded) {
+        if (recorded.error().code == ErrorCode::OutOfRange) {
+            return recorded.error();
+        }
+        return std::optional<baker::BakeConfig>();
+    }
+    if (!recorded.value().is_object() || !recorded.value().contains(key)) {
+        return std::optional<baker::BakeConfig>();
+    }
+    const nlohmann::json section = {{key, recorded.value()[key]}};
+    Result<baker::BakeConfig> config = baker::parseBakeConfig(section.dump(), source);
+    if (!config) {
+        return config.error();
+    }
+    return std::optional<baker::BakeConfig>(std::move(config).value());
 }
 
 } // namespace
@@ -105,14 +133,12 @@ Result<LightSelection> directLights(const baker::Scene& scene, const BakeMetadat
                                     const std::string& source) {
     baker::LightModesConfig modes;
     modes.punctual = baker::LightMode::Indirect; // files that record no modes: every light
-    const nlohmann::json recorded = nlohmann::json::parse(metadata.parametersJson, nullptr, false);
-    if (recorded.is_object() && recorded.contains("lights")) {
-        Result<baker::BakeConfig> config =
-            baker::parseBakeConfig(nlohmann::json{{"lights", recorded["lights"]}}.dump(), source);
-        if (!config) {
-            return config.error();
-        }
-        modes = config.value().lights;
+    Result<std::optional<baker::BakeConfig>> recorded = recordedSection(metadata, "lights", source);
+    if (!recorded) {
+        return recorded.error();
+    }
+    if (recorded.value()) {
+        modes = recorded.value()->lights;
     }
     Result<std::vector<baker::LightMode>> per_light = baker::lightModesOf(scene, modes);
     if (!per_light) {
@@ -162,16 +188,30 @@ Result<Environment> environmentFromSpec(const std::string& spec, const std::stri
 }
 
 Result<Environment> recordedEnvironment(const BakeMetadata& metadata, const std::string& source,
+                                        const std::vector<std::filesystem::path>& allowed_roots,
                                         std::string& warning) {
-    const nlohmann::json recorded = nlohmann::json::parse(metadata.parametersJson, nullptr, false);
-    if (!recorded.is_object() || !recorded.contains("environment")) {
+    Result<std::optional<baker::BakeConfig>> recorded =
+        recordedSection(metadata, "environment", source);
+    if (!recorded) {
+        return recorded.error();
+    }
+    if (!recorded.value()) {
         return Environment{};
     }
-    Result<baker::EnvironmentConfig> config = parseEnvironment(recorded["environment"], source);
-    if (!config) {
-        return config.error();
+    baker::EnvironmentConfig config = recorded.value()->environment;
+    if (config.type == baker::EnvironmentConfig::Type::LatLong) {
+        // The volume is untrusted: the file it names is opened only inside the allowed folders.
+        std::optional<std::filesystem::path> inside =
+            baker::pathUnderRoots(config.file, allowed_roots);
+        if (!inside) {
+            warning = source + ": environment file " + config.file.string() +
+                      " recorded in the volume is outside the scene folder; not opened (pass "
+                      "--env to use it); the background stays black";
+            return Environment{};
+        }
+        config.file = std::move(*inside);
     }
-    Result<Environment> loaded = baker::makeEnvironment(config.value());
+    Result<Environment> loaded = baker::makeEnvironment(config);
     if (!loaded) {
         warning = loaded.error().message + "; the background stays black";
         return Environment{};

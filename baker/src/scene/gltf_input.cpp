@@ -9,6 +9,7 @@
 #include <limits>
 #include <string_view>
 
+#include "probekit/formats/json_nesting.hpp"
 #include "scene/gltf_input.hpp"
 
 namespace probekit::baker::gltf {
@@ -35,47 +36,10 @@ std::string hex32(uint32_t value) {
 
 uint64_t checkJsonNesting(std::span<const uint8_t> text, uint64_t base_offset,
                           const std::string& file) {
-    size_t depth = 0;
-    size_t deepest = 0;
-    uint64_t first_too_deep = 0;
-    uint64_t values = 0;
-    bool in_string = false;
-    for (size_t i = 0; i < text.size(); ++i) {
-        const uint8_t c = text[i];
-        if (in_string) {
-            if (c == '\\') {
-                ++i; // the escaped character cannot end the string
-            } else if (c == '"') {
-                in_string = false;
-            }
-            continue;
-        }
-        switch (c) {
-        case '"':
-            in_string = true;
-            ++values;
-            break;
-        case '[':
-        case '{':
-            ++values;
-            if (++depth > deepest) {
-                deepest = depth;
-                if (depth == kMaxJsonDepth + 1) {
-                    first_too_deep = base_offset + i;
-                }
-            }
-            break;
-        case ']':
-        case '}':
-            depth -= depth > 0 ? 1 : 0;
-            break;
-        case ',':
-            ++values;
-            break;
-        default:
-            break;
-        }
-    }
+    const JsonNesting nesting = scanJsonNesting(
+        std::string_view(reinterpret_cast<const char*>(text.data()), text.size()), kMaxJsonDepth);
+    const size_t deepest = nesting.deepest;
+    const uint64_t first_too_deep = base_offset + nesting.firstTooDeep;
     if (deepest > kMaxJsonDepth) {
         throw LoadError{ErrorCode::OutOfRange,
                         file + ": JSON arrays and objects nest " + std::to_string(deepest) +
@@ -85,7 +49,7 @@ uint64_t checkJsonNesting(std::span<const uint8_t> text, uint64_t base_offset,
                             " (a glTF nests about 8; the limit keeps the parser's recursion "
                             "within its stack)"};
     }
-    return values + 1;
+    return nesting.values + 1;
 }
 
 namespace {

@@ -118,8 +118,6 @@ public:
     Resolved resolve(const std::string& decoded) const;
 
 private:
-    bool allowed(const std::filesystem::path& canonical) const;
-
     std::string m_base;
     std::vector<std::filesystem::path> m_roots; // canonical: the scene folder first
     std::vector<std::string> m_unresolved;

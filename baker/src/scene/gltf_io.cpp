@@ -11,6 +11,7 @@
 
 #include <tiny_gltf.h>
 
+#include "probekit/baker/folder_rule.hpp"
 #include "scene/gltf_input.hpp"
 
 // stb_image decodes the images (tinygltf's default loader calls it). Its header comes with
@@ -61,6 +62,32 @@ bool isUnder(const fs::path& path, const fs::path& root) {
     return true;
 }
 
+bool underAny(const fs::path& path, const std::vector<fs::path>& roots) {
+    return std::any_of(roots.begin(), roots.end(),
+                       [&](const fs::path& root) { return isUnder(path, root); });
+}
+
+// Whether absolute `candidate` stays under one of the canonical `roots`: first by where its
+// components lead (decided before whether it exists, so a refusal says nothing about files
+// outside), then, when it exists, by its canonical path (a link inside that points out).
+// `real` receives the canonical path, empty when the file is missing.
+bool leadsUnder(const fs::path& candidate, const std::vector<fs::path>& roots, fs::path& real) {
+    std::error_code ec;
+    fs::path leads_to = fs::weakly_canonical(candidate, ec);
+    if (ec) {
+        leads_to = candidate.lexically_normal();
+    }
+    if (!underAny(leads_to, roots)) {
+        return false;
+    }
+    real = fs::canonical(candidate, ec);
+    if (ec) {
+        real.clear();
+        return true;
+    }
+    return underAny(real, roots);
+}
+
 const char* fileKind(mode_t mode) {
     if (S_ISDIR(mode)) {
         return "a directory";
@@ -96,15 +123,6 @@ AssetFolder::AssetFolder(const fs::path& scene_name, const std::vector<fs::path>
     }
 }
 
-bool AssetFolder::allowed(const fs::path& canonical) const {
-    for (const fs::path& root : m_roots) {
-        if (isUnder(canonical, root)) {
-            return true;
-        }
-    }
-    return false;
-}
-
 AssetFolder::Resolved AssetFolder::resolve(const std::string& decoded) const {
     using Kind = Resolved::Kind;
     const std::string outside =
@@ -126,23 +144,12 @@ AssetFolder::Resolved AssetFolder::resolve(const std::string& decoded) const {
     if (decoded.empty() || m_base.empty()) {
         return {Kind::Missing, {}, {}};
     }
-    const fs::path candidate = fs::path(m_base) / decoded;
-    // Where the path leads is decided before whether it exists, so a refusal says nothing
-    // about files outside the allowed folders.
-    std::error_code ec;
-    fs::path leads_to = fs::weakly_canonical(candidate, ec);
-    if (ec) {
-        leads_to = candidate.lexically_normal();
-    }
-    if (!allowed(leads_to)) {
+    fs::path real;
+    if (!leadsUnder(fs::path(m_base) / decoded, m_roots, real)) {
         return {Kind::Refused, {}, outside};
     }
-    const fs::path real = fs::canonical(candidate, ec);
-    if (ec) {
+    if (real.empty()) {
         return {Kind::Missing, {}, {}};
-    }
-    if (!allowed(real)) {
-        return {Kind::Refused, {}, outside}; // a link inside that points out
     }
     struct stat info;
     if (::stat(real.c_str(), &info) != 0) {
@@ -333,3 +340,26 @@ void installIoCallbacks(tinygltf::TinyGLTF& parser, IoContext& context) {
 }
 
 } // namespace probekit::baker::gltf
+
+namespace probekit::baker {
+
+std::optional<std::filesystem::path>
+pathUnderRoots(const std::filesystem::path& named,
+               const std::vector<std::filesystem::path>& roots) {
+    namespace fs = std::filesystem;
+    std::vector<fs::path> canonical_roots;
+    for (const fs::path& root : roots) {
+        if (fs::path canonical = gltf::canonicalFolder(root); !canonical.empty()) {
+            canonical_roots.push_back(std::move(canonical));
+        }
+    }
+    std::error_code ec;
+    const fs::path absolute = fs::absolute(named, ec);
+    fs::path real;
+    if (ec || named.empty() || !gltf::leadsUnder(absolute, canonical_roots, real)) {
+        return std::nullopt;
+    }
+    return real.empty() ? absolute.lexically_normal() : real;
+}
+
+} // namespace probekit::baker

@@ -68,29 +68,40 @@ Result<RayThroughput> measureRayThroughput(const Scene& scene, uint64_t rays, ui
     // such as the 20000 rays of the bench-rays test), and nothing would make every thread trace
     // its own pregenerated rays for the whole interval. The barrier starts the clock only once
     // every thread holds its rays and stops it when the last one is done.
+    // A thread the system refuses to start (a process or address-space limit) is left out:
+    // its share of the rays is dropped from the barrier and from the count reported.
     std::barrier sync(std::ptrdiff_t(threads) + 1);
+    const auto share = [&](size_t t) { return rays / threads + (t < rays % threads ? 1 : 0); };
     std::vector<std::thread> workers;
-    workers.reserve(threads);
-    for (uint32_t t = 0; t < threads; ++t) {
-        const uint64_t count = rays / threads + (t < rays % threads ? 1 : 0);
-        workers.emplace_back([&, t, count] {
-            const ScopedFloatMode float_mode;
-            const std::vector<Ray> pool =
-                generateRays(scene.bounds, std::min(count, kMaxPregeneratedRays), t);
-            sync.arrive_and_wait();
-            for (uint64_t i = 0; i < count; ++i) {
-                const Ray& ray = pool[i % pool.size()];
-                // The query is an opaque library call: its result can be dropped.
-                (void)tracer.intersect(ray.origin, ray.dir);
-            }
-            sync.arrive_and_wait();
-            sync.arrive_and_wait();
-            for (uint64_t i = 0; i < count; ++i) {
-                const Ray& ray = pool[i % pool.size()];
-                (void)tracer.occluded(ray.origin, ray.dir, kInfinity);
-            }
-            sync.arrive_and_wait();
-        });
+    const size_t started = detail::startThreads(threads, workers, [&](size_t t) {
+        const ScopedFloatMode float_mode;
+        const uint64_t count = share(t);
+        const std::vector<Ray> pool =
+            generateRays(scene.bounds, std::min(count, kMaxPregeneratedRays), uint32_t(t));
+        sync.arrive_and_wait();
+        for (uint64_t i = 0; i < count; ++i) {
+            const Ray& ray = pool[i % pool.size()];
+            // The query is an opaque library call: its result can be dropped.
+            (void)tracer.intersect(ray.origin, ray.dir);
+        }
+        sync.arrive_and_wait();
+        sync.arrive_and_wait();
+        for (uint64_t i = 0; i < count; ++i) {
+            const Ray& ray = pool[i % pool.size()];
+            (void)tracer.occluded(ray.origin, ray.dir, kInfinity);
+        }
+        sync.arrive_and_wait();
+    });
+    if (started == 0) {
+        return makeError(ErrorCode::Io, "bench-rays: the system refused to start a thread");
+    }
+    uint64_t traced = 0;
+    for (size_t t = 0; t < threads; ++t) {
+        if (t < started) {
+            traced += share(t);
+        } else {
+            sync.arrive_and_drop();
+        }
     }
     using Clock = std::chrono::steady_clock;
     sync.arrive_and_wait();
@@ -109,10 +120,10 @@ Result<RayThroughput> measureRayThroughput(const Scene& scene, uint64_t rays, ui
         return std::max(1e-9, std::chrono::duration<double>(b - a).count());
     };
     RayThroughput result;
-    result.rays = rays;
-    result.threads = threads;
-    result.closestHitMraysPerSec = double(rays) / seconds(closest_start, closest_end) * 1e-6;
-    result.occlusionMraysPerSec = double(rays) / seconds(occlusion_start, occlusion_end) * 1e-6;
+    result.rays = traced;
+    result.threads = uint32_t(started);
+    result.closestHitMraysPerSec = double(traced) / seconds(closest_start, closest_end) * 1e-6;
+    result.occlusionMraysPerSec = double(traced) / seconds(occlusion_start, occlusion_end) * 1e-6;
     return result;
 }
 

@@ -18,15 +18,17 @@ struct RayThroughput {
     double closestHitMraysPerSec = 0; // closest-hit queries, millions of rays per second
     double occlusionMraysPerSec = 0;  // any-hit (occlusion) queries, millions of rays per second
     uint64_t rays = 0;                // rays traced per query kind
-    uint32_t threads = 0;             // threads that traced them
+    uint32_t threads = 0;             // threads that traced them (fewer than asked for when
+                                      // the system refused to start some)
 };
 
 // Builds the tracer for `scene` (not timed), then traces `rays` incoherent rays of each kind on
 // `threads` threads (0: std::thread::hardware_concurrency()): origins uniform in the scene
 // bounds shrunk by 1% per side, directions uniform on the sphere, unbounded length. Rays are
 // generated per thread before the clock starts (each thread cycles over at most 2^20 of its
-// own), from a fixed seed, so two runs trace the same rays. Fails if `rays` is 0 or the tracer
-// cannot be built.
+// own), from a fixed seed, so two runs trace the same rays. A thread the system refuses to
+// start is left out with its share of the rays (`rays` and `threads` of the result say what was
+// traced). Fails if `rays` is 0, the tracer cannot be built or no thread can be started.
 Result<RayThroughput> measureRayThroughput(const Scene& scene, uint64_t rays, uint32_t threads);
 
 } // namespace probekit::baker

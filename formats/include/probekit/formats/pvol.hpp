@@ -25,7 +25,8 @@
 //
 // Reading never trusts the bytes: every count is checked against the bytes that remain
 // before anything is allocated, every enum against its known values, every float field for
-// finiteness, every resolution for power-of-two; each failure has its own ErrorCode and a
+// finiteness, every resolution for power-of-two, the parameters' JSON nesting against
+// kMaxJsonDepth (json_nesting.hpp: OutOfRange); each failure has its own ErrorCode and a
 // message naming the file and the field.
 #pragma once
 

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <span>
 #include <string>
 #include <vector>
@@ -73,9 +74,14 @@ Result<std::vector<uint32_t>> lightVisibility(const baker::Scene& scene,
 Result<Environment> environmentFromSpec(const std::string& spec, const std::string& source);
 
 // The environment the volumes were baked with, as the .pvol's recorded bake settings hold it:
-// black when they record none. A record that does not parse is an error naming `source`; a
-// recorded file that no longer loads gives black, and `warning` says why.
+// black when they record none. A record that does not parse is an error naming `source`. The
+// .pvol is untrusted, so a recorded file is opened only when it resolves under one of
+// `allowed_roots` (baker::pathUnderRoots: `..` and links resolved; a relative path against the
+// working directory, as the bake read it); one outside gives black and a `warning` naming it
+// ("...: environment file X recorded in the volume is outside the scene folder; not opened
+// (pass --env to use it)..."), as does a recorded file that no longer loads.
 Result<Environment> recordedEnvironment(const BakeMetadata& metadata, const std::string& source,
+                                        const std::vector<std::filesystem::path>& allowed_roots,
                                         std::string& warning);
 
 // One 2^3 volume of zeros over the scene's bounds: the volume set a renderer needs when the
