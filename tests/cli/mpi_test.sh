@@ -35,7 +35,7 @@ same() {
     local out
     # shellcheck disable=SC2086
     out=$("${mpi[@]}" -np "$ranks" "$pk" bake $args -o "$name.mpi.pvol" --threads "$threads" \
-        --report "$name.json" 2>&1)
+        --report "$name.report.json" 2>&1)
     local rc=$?
     if [[ $rc -ne 0 ]]; then
         failed=$((failed + 1))
@@ -48,7 +48,7 @@ same() {
     check "$name: the summary names the processes" \
         grep -q "distributed over $ranks processes" <<<"$out"
     check "$name: the report counts the traffic" \
-        grep -qE "\"processes\": $ranks|\"mpi_result_bytes_per_probe\"" "$name.json"
+        grep -qE "\"processes\": $ranks|\"mpi_result_bytes_per_probe\"" "$name.report.json"
 }
 
 same dense "cornell.gltf --samples 64 --resolution 8,8,8" 2 1
