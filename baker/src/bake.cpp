@@ -275,34 +275,63 @@ PaddingTest paddingTest(const RayTracer& tracer, const PlacedBox& placed,
     return test;
 }
 
-// Probes (or bricks) per axis of an automatic resolution, and a note when max_resolution cut it.
+// The note for an automatic resolution that a cap changed: what was asked, what is used.
+std::string resolutionNote(const std::string& label, float density, glm::vec3 size,
+                           glm::uvec3 asked, glm::uvec3 res, bool bricked, const char* cap) {
+    const glm::vec3 spacing = size / glm::vec3(bricked ? res * brick::kBrickCells : res);
+    char text[512];
+    std::snprintf(text, sizeof text,
+                  "%s: %g probes/m over %.4g x %.4g x %.4g m asks %u x %u x %u %s; %s gives "
+                  "%u x %u x %u (probe spacing %.3g x %.3g x %.3g m); raise it, use layout "
+                  "bricked, or check the scene's units (--scale)",
+                  label.c_str(), double(density), size.x, size.y, size.z, asked.x, asked.y, asked.z,
+                  bricked ? "level-0 bricks" : "probes", cap, res.x, res.y, res.z, spacing.x,
+                  spacing.y, spacing.z);
+    return text;
+}
+
+// Probes (or bricks) per axis of an automatic resolution: size x density rounded to powers of
+// two, each axis capped by max_resolution, then the finest axis halved until the grid holds at
+// most max_probes probes; a note when either cap changed it.
 glm::uvec3 automaticResolution(const VolumeConfig& v, const grid::Aabb& box, float density,
                                const std::string& label, std::vector<std::string>& notes) {
     const bool bricked = v.layout == VolumeLayout::Bricked;
     const glm::vec3 size = box.size();
+    const uint32_t floor = v.position == grid::PositionMode::Corner ? 2u : 1u;
     glm::uvec3 res;
     glm::uvec3 asked;
     for (int a = 0; a < 3; ++a) {
         // Bricked: level-0 bricks, each spanning 3 probe spacings.
         const float probes = size[a] * density / (bricked ? float(brick::kBrickCells) : 1.0f);
         asked[a] = probes >= float(1u << 30) ? (1u << 30) : roundToPowerOfTwo(probes);
-        res[a] = std::min(asked[a], v.maxResolution);
-        if (v.position == grid::PositionMode::Corner) {
-            res[a] = std::max(res[a], 2u);
-        }
+        res[a] = std::max(std::min(asked[a], v.maxResolution), floor);
     }
     if (glm::any(glm::greaterThan(asked, glm::uvec3(v.maxResolution)))) {
-        const glm::vec3 spacing = size / glm::vec3(bricked ? res * brick::kBrickCells : res);
-        char text[512];
-        std::snprintf(text, sizeof text,
-                      "%s: %g probes/m over %.4g x %.4g x %.4g m asks %u x %u x %u %s; "
-                      "max_resolution %u caps it to %u x %u x %u (probe spacing %.3g x %.3g x "
-                      "%.3g m); raise it (--max-resolution), use layout bricked, or check the "
-                      "scene's units (--scale)",
-                      label.c_str(), double(density), size.x, size.y, size.z, asked.x, asked.y,
-                      asked.z, bricked ? "level-0 bricks" : "probes", v.maxResolution, res.x, res.y,
-                      res.z, spacing.x, spacing.y, spacing.z);
-        notes.emplace_back(text);
+        notes.push_back(resolutionNote(
+            label, density, size, asked, res, bricked,
+            ("max_resolution " + std::to_string(v.maxResolution) + " (--max-resolution)").c_str()));
+    }
+    const uint64_t per_cell =
+        bricked ? uint64_t(brick::kBrickCells) * brick::kBrickCells * brick::kBrickCells : 1u;
+    const glm::uvec3 capped = res;
+    while (uint64_t(res.x) * res.y * res.z * per_cell > v.maxProbes) {
+        int finest = -1;
+        for (int a = 0; a < 3; ++a) {
+            if (res[a] > floor &&
+                (finest < 0 || size[a] / float(res[a]) < size[finest] / float(res[finest]))) {
+                finest = a;
+            }
+        }
+        if (finest < 0) {
+            break; // every axis at its floor: max_probes >= 8 holds a corner grid
+        }
+        res[finest] /= 2;
+    }
+    if (res != capped) {
+        notes.push_back(resolutionNote(
+            label, density, size, asked, res, bricked,
+            ("the budget of " + std::to_string(v.maxProbes) + " probes (max_probes, --max-probes)")
+                .c_str()));
     }
     return res;
 }

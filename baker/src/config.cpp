@@ -672,6 +672,11 @@ const std::vector<Field<VolumeConfig>>& volumeFields() {
                         whole(1, grid::kMaxResolution).powersOfTwo(), "",
                         "automatic resolution: cap per axis", "--max-resolution"),
                   {automatic}),
+        shownWhen(field("max_probes", &VolumeConfig::maxProbes, whole(8, 1u << 24), "",
+                        "automatic resolution: most probes (bricked: level-0 probes); past it "
+                        "the finest axis is halved",
+                        "--max-probes"),
+                  {automatic}),
         field("position", &VolumeConfig::position, choiceOf<grid::PositionMode>(), "",
               "probe placement", "--position"),
         field("format", &VolumeConfig::storage, choiceOf<Storage>(), "", "texel storage",

@@ -158,12 +158,45 @@ TEST(BakeVolumes, AutoResolutionRoundsToPowersOfTwoAndCaps) {
     scene.triangles.push_back(glm::uvec3(0, 1, 2));
     BakeConfig c;
     VolumeConfig v;
-    v.density = 4.0f;        // 8, 3.6, 160 probes -> 8, 4, capped 32
+    v.density = 4.0f;        // 8, 3.6, 160 probes -> 8, 4, 128 (4096, within max_probes)
     v.bounds.padding = 0.0f; // automatic padding traces rays, which this scene cannot take
     c.volumes = {v};
     Result<std::vector<VolumeDesc>> d = resolveVolumes(scene, c);
     ASSERT_TRUE(d.ok()) << d.error().message;
-    EXPECT_EQ(d.value()[0].grid.resolution(), glm::uvec3(8, 4, 32));
+    EXPECT_EQ(d.value()[0].grid.resolution(), glm::uvec3(8, 4, 128));
+    // A budget of 1024 probes halves the finest axis first: y (0.225 m) to 2, then x (0.25 m)
+    // to 4; z (0.31 m) keeps its 128.
+    c.volumes[0].maxProbes = 1024;
+    Result<std::vector<VolumeDesc>> budget = resolveVolumes(scene, c);
+    ASSERT_TRUE(budget.ok()) << budget.error().message;
+    EXPECT_EQ(budget.value()[0].grid.resolution(), glm::uvec3(4, 2, 128));
+    // max_resolution caps every axis before the budget.
+    c.volumes[0].maxProbes = kDefaultMaxProbes;
+    c.volumes[0].maxResolution = 16;
+    Result<std::vector<VolumeDesc>> capped = resolveVolumes(scene, c);
+    ASSERT_TRUE(capped.ok()) << capped.error().message;
+    EXPECT_EQ(capped.value()[0].grid.resolution(), glm::uvec3(8, 4, 16));
+}
+
+// A wide, flat level (the arena generator's 65 x 8.5 x 65 m) under the default budget keeps even
+// spacing: 64 x 8 x 64, about 1 m in every direction, the same 32768 probes that a cap of 32 per
+// axis spent on 2.03 x 0.27 x 2.03 m (issue 29, item 1).
+TEST(BakeVolumes, TheProbeBudgetKeepsALevelsSpacingEven) {
+    Scene scene;
+    scene.bounds = {glm::vec3(-32.5f, -0.5f, -32.5f), glm::vec3(32.5f, 8.0f, 32.5f)};
+    scene.triangles.push_back(glm::uvec3(0, 1, 2));
+    BakeConfig c;
+    c.volumes.resize(1);
+    c.volumes[0].bounds.padding = 0.0f;
+    Result<VolumePlan> plan = planVolumes(scene, c);
+    ASSERT_TRUE(plan.ok()) << plan.error().message;
+    EXPECT_EQ(plan.value().volumes[0].grid.resolution(), glm::uvec3(64, 8, 64));
+    ASSERT_EQ(plan.value().notes.size(), 1u);
+    EXPECT_NE(plan.value().notes[0].find("asks 256 x 32 x 256 probes; the budget of 32768 probes "
+                                         "(max_probes, --max-probes) gives 64 x 8 x 64 (probe "
+                                         "spacing 1.02 x 1.06 x 1.02 m)"),
+              std::string::npos)
+        << plan.value().notes[0];
 }
 
 TEST(BakeVolumes, DefaultDensityGivesSmallScenesAUsefulGrid) {

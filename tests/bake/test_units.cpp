@@ -297,7 +297,8 @@ TEST(UnitScale, BakeRefusesAConfigScaleTheSceneWasNotLoadedWith) {
         << r.error().message;
 }
 
-// An automatic resolution beyond max_resolution is capped with a note that says both.
+// An automatic resolution beyond max_probes or max_resolution is cut with a note that says what
+// was asked and what is used.
 TEST(ResolutionCap, TheNoteSaysWhatWasAskedAndWhatIsUsed) {
     const Scene cube = closedCube(0.0f, 10.0f);
     BakeConfig c;
@@ -307,15 +308,31 @@ TEST(ResolutionCap, TheNoteSaysWhatWasAskedAndWhatIsUsed) {
     Result<VolumePlan> plan = planVolumes(cube, c);
     ASSERT_TRUE(plan.ok()) << plan.error().message;
     EXPECT_EQ(plan.value().volumes[0].grid.resolution(), glm::uvec3(32));
-    ASSERT_EQ(plan.value().notes.size(), 1u);
-    const std::string& n = plan.value().notes[0];
+    // Two cuts, each said: max_resolution to 256 per axis, then the budget to 32 per axis.
+    ASSERT_EQ(plan.value().notes.size(), 2u);
+    EXPECT_NE(plan.value().notes[0].find("asks 1024 x 1024 x 1024 probes; max_resolution 256 "
+                                         "(--max-resolution) gives 256 x 256 x 256"),
+              std::string::npos)
+        << plan.value().notes[0];
+    const std::string& n = plan.value().notes[1];
     EXPECT_NE(n.find("100 probes/m over 10 x 10 x 10 m asks 1024 x 1024 x 1024 probes"),
               std::string::npos)
         << n;
-    EXPECT_NE(n.find("max_resolution 32 caps it to 32 x 32 x 32 (probe spacing 0.312"),
+    EXPECT_NE(n.find("the budget of 32768 probes (max_probes, --max-probes) gives 32 x 32 x 32 "
+                     "(probe spacing 0.312"),
               std::string::npos)
         << n;
-    // Within the cap: no note.
+    // max_resolution below the budget's answer: its own note.
+    c.volumes[0].maxResolution = 16;
+    Result<VolumePlan> capped = planVolumes(cube, c);
+    ASSERT_TRUE(capped.ok());
+    EXPECT_EQ(capped.value().volumes[0].grid.resolution(), glm::uvec3(16));
+    ASSERT_EQ(capped.value().notes.size(), 1u);
+    EXPECT_NE(capped.value().notes[0].find("max_resolution 16 (--max-resolution) gives 16 x 16"),
+              std::string::npos)
+        << capped.value().notes[0];
+    // Within both caps: no note.
+    c.volumes[0].maxResolution = 256;
     c.volumes[0].density = 3.0f;
     Result<VolumePlan> fine = planVolumes(cube, c);
     ASSERT_TRUE(fine.ok());

@@ -60,6 +60,8 @@ constexpr float kAutoPaddingEnclosedHits = 0.9f;
 constexpr float kDefaultDensity = 4.0f; // probes per metre
 constexpr float kMinAutoProbes = 8.0f;  // along the longest axis of an automatic grid
 
+constexpr uint32_t kDefaultMaxProbes = 32768;
+
 struct VolumeConfig {
     std::string name = "volume";
     BoundsConfig bounds;
@@ -67,7 +69,12 @@ struct VolumeConfig {
     // auto: probes per metre. Unset = chosen from the volume: kDefaultDensity, raised so the
     // longest axis gets at least kMinAutoProbes probes (small scenes still get a useful grid).
     std::optional<float> density;
-    uint32_t maxResolution = 32; // auto: cap per axis (<= 256)
+    uint32_t maxResolution = 256; // auto: cap per axis (<= 256)
+    // auto: the most probes (bricked: level-0 probes, 27 per brick) the grid may have. Past it
+    // the axis with the finest spacing is halved until it fits, so a flat level keeps even
+    // spacing (65 x 8.5 x 65 m at 4/m: 64 x 8 x 64, 1.02 m) where a cap per axis would give
+    // 32 x 32 x 32 (2.03 x 0.27 x 2.03 m) for the same count. 32^3, the old per-axis cap's cube.
+    uint32_t maxProbes = kDefaultMaxProbes;
     grid::PositionMode position = grid::PositionMode::Center;
     Storage storage = Storage::Float16;
     sh::Order shOrder = sh::Order::L2;
