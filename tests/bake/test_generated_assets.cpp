@@ -1,9 +1,10 @@
 // The generated scenes that stand in for third-party assets (generators.hpp): critter-cm,
-// text-floor, lone-box and engine-mm. Each is written by writeGeneratedScene, loaded through
-// loadGltf like any user file, and checked for what it was built to exercise: its triangle
-// count and bounds in the file's own units (centimetres and millimetres read as metres, the
-// way formats/CONVENTIONS.md reads every glTF), its textures decoded and sampled by albedoAt
-// as designed, its lights, and a small bake whose figures follow from those lights.
+// text-floor, lone-box and engine-mm, and the game levels arena and arena-sealed. Each is written
+// by writeGeneratedScene, loaded through loadGltf like any user file, and checked for what it was
+// built to exercise: its triangle count and bounds in the file's own units (centimetres and
+// millimetres read as metres, the way formats/CONVENTIONS.md reads every glTF), its textures
+// decoded and sampled by albedoAt as designed, its lights, and a small bake whose figures follow
+// from those lights.
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -429,4 +430,32 @@ TEST(GeneratedEngineMm, ProbeUnderThePanelGetsItsIrradiance) {
     std::printf("[engine-mm] E(+Y) %.3f under the panel, exact %.3f (W/m^2, red)\n", e.x, expected);
     EXPECT_GT(e.x, 0.95f * expected);
     EXPECT_LT(e.x, 1.12f * expected);
+}
+
+// ---------------------------------------------------------------------------------------------
+// arena and arena-sealed: the game levels (issue 29)
+
+TEST(GeneratedArena, ALevelInMetresLoadsWithoutAUnitsAlarmAndGetsAnEvenGrid) {
+    for (const char* name : {"arena", "arena-sealed"}) {
+        SCOPED_TRACE(name);
+        const Generated g = writeAndLoad(name); // no warning: 4 m storeys read as metres
+        const Scene& scene = g.scene;
+        const bool sealed = std::string(name) == "arena-sealed";
+        // 136 boxes of 12 triangles; the sealed one has its roof on top.
+        EXPECT_EQ(scene.triangles.size(), sealed ? 1644u : 1632u);
+        expectNear(scene.bounds.min, {-32.5f, -0.5f, -32.5f}, kBoundsTolerance, "min");
+        expectNear(scene.bounds.max, {32.5f, sealed ? 8.5f : 8.0f, 32.5f}, kBoundsTolerance, "max");
+        size_t spots = 0;
+        for (const PunctualLight& l : scene.lights) {
+            spots += l.type == LightType::Spot ? 1 : 0;
+        }
+        EXPECT_EQ(scene.lights.size(), 32u);
+        EXPECT_EQ(spots, 4u);
+        // Default placement: no padding (the open one is no closed object, the sealed one is
+        // a level seen from its solid space), and about 1 m spacing from the probe budget.
+        Result<VolumePlan> plan = planVolumes(scene, BakeConfig{});
+        ASSERT_TRUE(plan.ok()) << plan.error().message;
+        EXPECT_EQ(plan.value().padding[0], 0.0f);
+        EXPECT_EQ(plan.value().volumes[0].grid.resolution(), glm::uvec3(64, 8, 64));
+    }
 }
