@@ -317,6 +317,30 @@ TEST(GltfHostile, AMissingUriIsNotLookedUpInTheWorkingDirectory) {
                                     canonicalString(dir / "scene")));
 }
 
+// A URI is a path with percent-escapes (RFC 3986): '+' is itself, as every exporter means it,
+// though tinygltf's decoder takes it for a space (issue 31, class 7: refused as "no such
+// file"). The loader reads the file the URI names, and lists it in Scene::files.
+TEST(GltfHostile, APlusInAUriIsAPlusAndPercentEscapesAreDecoded) {
+    TempDir dir;
+    GltfBuilder builder = quadDocument(4, nullptr);
+    const fs::path plus = builder.writeExternal(dir / "a+b.gltf");
+    Result<baker::Scene> loaded = loadGltf(plus);
+    ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+    ASSERT_EQ(loaded.value().files.size(), 2u);
+    EXPECT_EQ(loaded.value().files[0], plus);
+    EXPECT_EQ(loaded.value().files[1].filename(), "a+b.bin");
+    // "%20" is a space; a file named with a '+' where the URI has a space is not read.
+    const fs::path spaced = builder.writeExternal(dir / "c d.gltf");
+    json doc = json::parse(readText(spaced));
+    doc["buffers"][0]["uri"] = "c%20d.bin";
+    writeText(dir / "escaped.gltf", doc.dump());
+    EXPECT_TRUE(loadGltf(dir / "escaped.gltf").ok()) << loadError(dir / "escaped.gltf");
+    fs::rename(dir / "c d.bin", dir / "c+d.bin");
+    EXPECT_EQ(loadError(dir / "escaped.gltf"),
+              at(dir / "escaped.gltf",
+                 "buffers[0].uri 'c%20d.bin': no such file in " + canonicalString(dir / ".")));
+}
+
 TEST(GltfHostile, AssetRootsAllowMoreFoldersButNeverAbsoluteUris) {
     TempDir dir;
     fs::create_directories(dir / "scene");

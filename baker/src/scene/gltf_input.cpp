@@ -198,8 +198,11 @@ bool isEmbeddedDataUri(const std::string& uri) {
                        [&](std::string_view prefix) { return uri.starts_with(prefix); });
 }
 
-std::string percentDecoded(const std::string& uri) {
-    // tinygltf's dlib::urldecode, byte for byte: '+' is a space, a non-hex digit counts as 0.
+namespace {
+
+// Percent-decoding as tinygltf's dlib::urldecode does it, byte for byte (a non-hex digit counts
+// as 0), with '+' a space or itself.
+std::string decodeUri(const std::string& uri, bool plus_is_space) {
     auto hex = [](unsigned char c) -> unsigned {
         if (c >= '0' && c <= '9') {
             return c - '0';
@@ -214,7 +217,7 @@ std::string percentDecoded(const std::string& uri) {
     };
     std::string out;
     for (size_t i = 0; i < uri.size(); ++i) {
-        if (uri[i] == '+') {
+        if (uri[i] == '+' && plus_is_space) {
             out += ' ';
         } else if (uri[i] == '%' && uri.size() > i + 2) {
             out += static_cast<char>(hex(static_cast<unsigned char>(uri[i + 1])) << 4 |
@@ -225,6 +228,35 @@ std::string percentDecoded(const std::string& uri) {
         }
     }
     return out;
+}
+
+} // namespace
+
+std::string percentDecoded(const std::string& uri) {
+    return decodeUri(uri, true);
+}
+
+std::string uriPath(const std::string& uri) {
+    return decodeUri(uri, false);
+}
+
+UriPaths fileUriPaths(const nlohmann::json& document) {
+    UriPaths paths;
+    for (const char* list : {"buffers", "images"}) {
+        const auto found = document.find(list);
+        if (found == document.end() || !found->is_array()) {
+            continue;
+        }
+        for (const nlohmann::json& item : *found) {
+            const auto uri = item.is_object() ? item.find("uri") : item.end();
+            if (uri != item.end() && uri->is_string() &&
+                !isEmbeddedDataUri(uri->get<std::string>())) {
+                paths.emplace(percentDecoded(uri->get<std::string>()),
+                              uriPath(uri->get<std::string>()));
+            }
+        }
+    }
+    return paths;
 }
 
 namespace {
@@ -717,7 +749,7 @@ private:
     }
 
     void fileUri(const std::string& path, const std::string& uri, bool required) const {
-        const AssetFolder::Resolved resolved = m_folder.resolve(percentDecoded(uri));
+        const AssetFolder::Resolved resolved = m_folder.resolve(uriPath(uri));
         const std::string field = join(path, "uri") + " '" + uri + "'";
         if (resolved.kind == AssetFolder::Resolved::Refused) {
             fail(ErrorCode::InvalidArgument, field + " " + resolved.reason);

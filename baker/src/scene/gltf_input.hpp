@@ -14,6 +14,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <span>
 #include <string>
@@ -68,10 +69,18 @@ GlbChunks checkGlbContainer(std::span<const uint8_t> bytes, const std::string& f
 // the shortest form that reads back the same double.
 std::string numberText(double value);
 
-// tinygltf's own decision and decoding of a URI, mirrored so the checks see the path tinygltf
-// will open: the data: prefixes it decodes itself, and its percent-decoding ('+' is a space).
+// tinygltf's own decision and decoding of a URI: the data: prefixes it decodes itself, and its
+// percent-decoding, which takes '+' for a space as HTML forms do.
 bool isEmbeddedDataUri(const std::string& uri);
 std::string percentDecoded(const std::string& uri);
+// The path a relative URI names (RFC 3986): percent-decoding only, '+' is itself.
+std::string uriPath(const std::string& uri);
+// Every file URI of the document's buffers and images, by tinygltf's decoding of it (what its
+// file callbacks receive) to the path it names: "a+b.bin" reaches the callbacks as "a b.bin"
+// and is read as "a+b.bin". Two URIs that tinygltf decodes alike but name different files
+// keep the first.
+using UriPaths = std::map<std::string, std::string>;
+UriPaths fileUriPaths(const nlohmann::json& document);
 
 // Running account of the bytes a load holds or is about to allocate, against
 // LoadOptions::maxMemoryBytes.
@@ -151,6 +160,7 @@ struct IoContext {
     std::string file;
     std::optional<LoadError> refusal;
     std::vector<std::filesystem::path> read; // every buffer and image file read, in order
+    UriPaths uriPaths;                       // fileUriPaths of the document
 };
 
 // Replaces tinygltf's file callbacks (every read goes through AssetFolder::resolve and

@@ -232,7 +232,10 @@ std::optional<std::string> uriOf(const IoContext& context, const std::string& jo
     if (!std::string_view(joined).starts_with(prefix)) {
         return std::nullopt;
     }
-    return joined.substr(prefix.size());
+    // tinygltf took '+' for a space; the document's URI said which file it names.
+    const std::string decoded = joined.substr(prefix.size());
+    const auto named = context.uriPaths.find(decoded);
+    return named != context.uriPaths.end() ? named->second : decoded;
 }
 
 bool fileExists(const std::string& joined, void* user) {
