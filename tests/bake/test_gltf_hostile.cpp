@@ -435,8 +435,8 @@ TEST(GltfHostile, ImagesAreMeasuredFromTheirHeaderBeforeDecoding) {
     writeBytes(dir / "huge.png", huge.data(), huge.size());
     const fs::path big = quadFile(dir, "big.gltf", [](json& d) { addTexture(d, "huge.png"); });
     EXPECT_EQ(loadError(big),
-              at(big, "images[0] is 12000 x 12000 pixels, more than the limit of 67108864 "
-                      "(8192 x 8192)"));
+              at(big, "images[0] 'huge.png' is 12000 x 12000 pixels, more than the limit of "
+                      "67108864 (8192 x 8192)"));
 
     // 1024 x 1024 is within the pixel limit but not within a 16 MiB budget: stb's 4 MiB buffer,
     // tinygltf's 4 MiB copy and the baker's 16 MiB of float texels.
@@ -447,10 +447,41 @@ TEST(GltfHostile, ImagesAreMeasuredFromTheirHeaderBeforeDecoding) {
     LoadOptions options;
     options.maxMemoryBytes = 16ull << 20;
     const std::string message = loadError(embedded, options);
-    EXPECT_TRUE(contains(message, at(embedded, "images[0] (1024 x 1024 pixels, decoded) needs "
-                                               "25165824 bytes; with ")))
+    EXPECT_TRUE(contains(message, at(embedded, "images[0] (data: URI) (1024 x 1024 pixels, "
+                                               "decoded) needs 25165824 bytes; with ")))
         << message;
     EXPECT_TRUE(contains(message, "exceeds the memory limit of 16777216 bytes")) << message;
+}
+
+// A texture whose "source" is a PNG fallback beside a WebP (EXT_texture_webp) or KTX2
+// (KHR_texture_basisu) source, as the glTF extensions specify, loads with the PNG; the other
+// image is never decoded (issue 31, class 7: refused as not an image). An image the decoder
+// cannot read where a material needs it is named by its URI.
+TEST(GltfHostile, ATextureWithAPngFallbackBesideWebpOrKtx2Loads) {
+    TempDir dir;
+    const std::vector<uint8_t> png = encodePng(1, 1, 8, {255, 255, 255, 255});
+    writeBytes(dir / "white.png", png.data(), png.size());
+    writeText(dir / "white.webp", "RIFF\x10\0\0\0WEBPVP8 not decoded here");
+    writeText(dir / "white.ktx2", "\xabKTX 20\xbb\r\n\x1a\n not decoded here");
+    for (const char* extension : {"EXT_texture_webp", "KHR_texture_basisu"}) {
+        SCOPED_TRACE(extension);
+        const std::string other =
+            std::string(extension) == "EXT_texture_webp" ? "white.webp" : "white.ktx2";
+        const fs::path file = quadFile(dir, "fallback.gltf", [&](json& d) {
+            addTexture(d, "white.png");
+            d["images"].push_back({{"uri", other}});
+            d["textures"][0]["extensions"] = {{extension, {{"source", 1}}}};
+            d["extensionsUsed"] = {extension};
+        });
+        const Result<Scene> scene = loadGltf(file);
+        ASSERT_TRUE(scene.ok()) << scene.error().message;
+        ASSERT_EQ(scene.value().images.size(), 1u);
+        EXPECT_EQ(scene.value().images[0].width, 1u);
+    }
+    const fs::path webp_only =
+        quadFile(dir, "webp.gltf", [](json& d) { addTexture(d, "white.webp"); });
+    EXPECT_EQ(loadError(webp_only), at(webp_only, "images[0] 'white.webp' is not an image the "
+                                                  "decoder reads (PNG or JPEG)"));
 }
 
 TEST(GltfHostile, BufferSizesAreCheckedAgainstTheirDataAndTheBudget) {

@@ -259,6 +259,62 @@ UriPaths fileUriPaths(const nlohmann::json& document) {
     return paths;
 }
 
+ImagePlan imagePlan(const nlohmann::json& document) {
+    ImagePlan plan;
+    const auto images = document.find("images");
+    if (images == document.end() || !images->is_array()) {
+        return plan;
+    }
+    for (const nlohmann::json& image : *images) {
+        const auto uri = image.is_object() ? image.find("uri") : image.end();
+        const auto view = image.is_object() ? image.find("bufferView") : image.end();
+        const auto mime = image.is_object() ? image.find("mimeType") : image.end();
+        if (uri != image.end() && uri->is_string()) {
+            const std::string text = uri->get<std::string>();
+            plan.names.push_back(isEmbeddedDataUri(text) ? "(data: URI)" : "'" + text + "'");
+        } else if (view != image.end()) {
+            plan.names.push_back("(bufferView " + view->dump() +
+                                 (mime != image.end() && mime->is_string()
+                                      ? ", " + mime->get<std::string>()
+                                      : std::string()) +
+                                 ")");
+        } else {
+            plan.names.emplace_back("(no uri or bufferView)");
+        }
+    }
+    std::vector<uint8_t> by_source(plan.names.size(), 0);
+    std::vector<uint8_t> by_extension(plan.names.size(), 0);
+    const auto mark = [](std::vector<uint8_t>& used, const nlohmann::json& holder) {
+        const auto source = holder.find("source");
+        if (source != holder.end() && source->is_number_unsigned() &&
+            source->get<uint64_t>() < used.size()) {
+            used[size_t(source->get<uint64_t>())] = 1;
+        }
+    };
+    const auto textures = document.find("textures");
+    if (textures != document.end() && textures->is_array()) {
+        for (const nlohmann::json& texture : *textures) {
+            if (!texture.is_object()) {
+                continue;
+            }
+            mark(by_source, texture);
+            const auto extensions = texture.find("extensions");
+            if (extensions != texture.end() && extensions->is_object()) {
+                for (const auto& [name, extension] : extensions->items()) {
+                    if (extension.is_object()) {
+                        mark(by_extension, extension);
+                    }
+                }
+            }
+        }
+    }
+    plan.extensionOnly.resize(plan.names.size());
+    for (size_t i = 0; i < plan.names.size(); ++i) {
+        plan.extensionOnly[i] = by_extension[i] && !by_source[i];
+    }
+    return plan;
+}
+
 namespace {
 
 // Extensions whose presence in extensionsRequired we honour. KHR_mesh_quantization only widens

@@ -82,6 +82,17 @@ std::string uriPath(const std::string& uri);
 using UriPaths = std::map<std::string, std::string>;
 UriPaths fileUriPaths(const nlohmann::json& document);
 
+// What the file callbacks need to know of a checked document's images.
+struct ImagePlan {
+    // Per image, how messages name it: "'wood.png'", "(bufferView 3, image/webp)", "(data: URI)".
+    std::vector<std::string> names;
+    // Per image, 1 when no texture's "source" uses it, only an extension's (EXT_texture_webp,
+    // KHR_texture_basisu, MSFT_texture_dds name a WebP, KTX2 or DDS image beside the PNG or JPEG
+    // fallback of "source"): such an image is never decoded, as no material reads it.
+    std::vector<uint8_t> extensionOnly;
+};
+ImagePlan imagePlan(const nlohmann::json& document);
+
 // Running account of the bytes a load holds or is about to allocate, against
 // LoadOptions::maxMemoryBytes.
 class MemoryBudget {
@@ -161,6 +172,7 @@ struct IoContext {
     std::optional<LoadError> refusal;
     std::vector<std::filesystem::path> read; // every buffer and image file read, in order
     UriPaths uriPaths;                       // fileUriPaths of the document
+    ImagePlan images;                        // imagePlan of the document
 };
 
 // Replaces tinygltf's file callbacks (every read goes through AssetFolder::resolve and

@@ -300,7 +300,13 @@ bool loadImage(tinygltf::Image* image, const int index, std::string* err, std::s
                int required_width, int required_height, const unsigned char* bytes, int size,
                void* user) {
     IoContext& context = contextOf(user);
-    const std::string field = "images[" + std::to_string(index) + "]";
+    const size_t i = size_t(index);
+    if (i < context.images.extensionOnly.size() && context.images.extensionOnly[i]) {
+        return true; // a WebP/KTX2/DDS source beside a fallback: no material reads it
+    }
+    const std::string field =
+        "images[" + std::to_string(index) + "]" +
+        (i < context.images.names.size() ? " " + context.images.names[i] : std::string());
     int width = 0;
     int height = 0;
     int channels = 0;

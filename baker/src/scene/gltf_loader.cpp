@@ -14,6 +14,7 @@
 #include <span>
 #include <sstream>
 #include <string_view>
+#include <utility>
 
 #include "probekit/baker/scene.hpp"
 #include "probekit/formats/pvol.hpp"
@@ -85,11 +86,12 @@ bool isBinaryGltf(std::span<const uint8_t> bytes, const std::filesystem::path& n
 }
 
 // Checks the JSON document before tinygltf sees it: nesting, the parsed size against the
-// budget (charged), syntax, and every field gltf_input checks. Returns the paths its file URIs
-// name (fileUriPaths). Throws LoadError.
-gltf::UriPaths checkJsonDocument(std::span<const uint8_t> text, uint64_t text_offset,
-                                 const std::string& file, const gltf::GlbChunks* glb,
-                                 const gltf::AssetFolder& folder, MemoryBudget& budget) {
+// budget (charged), syntax, and every field gltf_input checks. Returns what the file callbacks
+// need to know of it (its URIs' paths, its images). Throws LoadError.
+std::pair<gltf::UriPaths, gltf::ImagePlan>
+checkJsonDocument(std::span<const uint8_t> text, uint64_t text_offset, const std::string& file,
+                  const gltf::GlbChunks* glb, const gltf::AssetFolder& folder,
+                  MemoryBudget& budget) {
     const uint64_t values = gltf::checkJsonNesting(text, text_offset, file);
     // Two parses hold the document (the check's, then tinygltf's with its Values); the first is
     // gone before the second, and some of tinygltf's stays in the model.
@@ -111,17 +113,18 @@ gltf::UriPaths checkJsonDocument(std::span<const uint8_t> text, uint64_t text_of
                         file + ": not valid JSON: " + std::string(e.what())};
     }
     gltf::checkDocument(document, file, glb, folder, budget);
-    return gltf::fileUriPaths(document);
+    return {gltf::fileUriPaths(document), gltf::imagePlan(document)};
 }
 
 // tinygltf's parse of the checked file, its buffers and images read through the folder rule and
 // the budget; `warning` receives tinygltf's warnings. Throws LoadError.
 tinygltf::Model parseModel(std::span<const uint8_t> bytes, std::span<const uint8_t> text,
                            bool binary, const gltf::AssetFolder& folder, MemoryBudget& budget,
-                           const std::string& file, gltf::UriPaths uri_paths, std::string& warning,
-                           std::vector<std::filesystem::path>& read) {
+                           const std::string& file, std::pair<gltf::UriPaths, gltf::ImagePlan> plan,
+                           std::string& warning, std::vector<std::filesystem::path>& read) {
     tinygltf::TinyGLTF parser;
-    gltf::IoContext io{folder, budget, file, std::nullopt, {}, std::move(uri_paths)};
+    gltf::IoContext io{
+        folder, budget, file, std::nullopt, {}, std::move(plan.first), std::move(plan.second)};
     gltf::installIoCallbacks(parser, io);
     tinygltf::Model model;
     std::string error;
@@ -178,12 +181,12 @@ Result<Scene> loadGltfBytes(std::span<const uint8_t> bytes, const std::filesyste
             text = glb.json;
             text_offset = glb.jsonOffset;
         }
-        gltf::UriPaths uri_paths =
+        std::pair<gltf::UriPaths, gltf::ImagePlan> plan =
             checkJsonDocument(text, text_offset, file, binary ? &glb : nullptr, folder, budget);
         std::string warning;
         std::vector<std::filesystem::path> read;
-        const tinygltf::Model model = parseModel(bytes, text, binary, folder, budget, file,
-                                                 std::move(uri_paths), warning, read);
+        const tinygltf::Model model =
+            parseModel(bytes, text, binary, folder, budget, file, std::move(plan), warning, read);
         GltfLoader loader(model, file, budget);
         Result<Scene> scene = loader.load(options.sceneIndex, xxhash64(bytes), warning);
         if (scene) {
