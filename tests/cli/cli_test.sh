@@ -167,7 +167,12 @@ expect 1 "--env: expected R,G,B \(three numbers\) or an image file" -- \
     "$pk" bake cornell.gltf -o env.pvol --env 1,1
 expect 1 "--env: expected R,G,B \(three numbers\) or an image file" -- \
     "$pk" bake cornell.gltf -o env.pvol --env 1,2,3,4
-expect 1 "no-such-sky.hdr" -- "$pk" bake cornell.gltf -o env.pvol --env no-such-sky.hdr
+expect 1 "^probekit bake: --env: no-such-sky.hdr: no such file" -- \
+    "$pk" bake cornell.gltf -o env.pvol --env no-such-sky.hdr
+# A map named in a config: the message names the config file and the field.
+echo '{"environment": {"type": "latlong", "file": "no-such-sky.hdr"}}' >sky.json
+expect 1 "^probekit bake: sky.json: environment.file: no-such-sky.hdr: no such file" -- \
+    "$pk" bake cornell.gltf -o env.pvol --config sky.json
 check "no output after a bad --env" test ! -e env.pvol
 
 # probekit info on a glTF: what the baker sees, in the project's units.

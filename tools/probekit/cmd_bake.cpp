@@ -223,7 +223,11 @@ Result<baker::Scene> loadScene(const BakeOptionsCli& o, const baker::BakeConfig&
     }
     Result<baker::Environment> environment = baker::makeEnvironment(config.environment);
     if (!environment) {
-        return environment.error();
+        // Said where the map was named: the flag, or the config file and its field.
+        const std::string where = o.env              ? std::string("--env")
+                                  : o.config.empty() ? std::string("environment.file")
+                                                     : o.config + ": environment.file";
+        return makeError(environment.error().code, where + ": " + environment.error().message);
     }
     scene.value().environment = std::move(environment).value();
     if (!o.quiet) {
