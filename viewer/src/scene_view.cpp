@@ -176,6 +176,10 @@ Result<Environment> environmentFromSpec(const std::string& spec, const std::stri
     if (spec == "none") {
         env = {{"type", "black"}};
     } else if (std::sscanf(spec.c_str(), "%f,%f,%f%c", &rgb[0], &rgb[1], &rgb[2], &tail) == 3) {
+        if (!std::isfinite(rgb[0]) || !std::isfinite(rgb[1]) || !std::isfinite(rgb[2])) {
+            return makeError(ErrorCode::OutOfRange,
+                             source + ": radiance must be finite (got \"" + spec + "\")");
+        }
         env = {{"type", "constant"}, {"radiance", {rgb[0], rgb[1], rgb[2]}}};
     } else {
         env = {{"type", "latlong"}, {"file", spec}};
