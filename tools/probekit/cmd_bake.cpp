@@ -226,7 +226,8 @@ Result<baker::Scene> loadScene(const BakeOptionsCli& o, const baker::BakeConfig&
     if (!scene) {
         return scene;
     }
-    Result<baker::Environment> environment = baker::makeEnvironment(config.environment);
+    Result<baker::Environment> environment =
+        baker::makeEnvironment(config.environment, config.maxMemoryBytes);
     if (!environment) {
         return environment.error();
     }
