@@ -616,6 +616,35 @@ TEST(GltfErrors, MissingExternalBufferOrTexture) {
     EXPECT_TRUE(contains(no_texture.error().message, "nowhere.png")) << no_texture.error().message;
 }
 
+// Issue 31 class 5: a buffer file larger than its byteLength was read whole (charged to the
+// memory limit, or refused by it) before tinygltf refused the size. Its size is now checked
+// from the file system first; the 64 MiB file here is sparse and never read.
+TEST(GltfErrors, ABufferFileOfTheWrongSizeIsRefusedBeforeItIsRead) {
+    TempDir dir;
+    const GltfBuilder builder = quadDocument(4, nullptr);
+    const fs::path file = builder.writeExternal(dir / "external.gltf");
+    const fs::path bin = fs::path(file).replace_extension(".bin");
+    const uint64_t length = fs::file_size(bin);
+    fs::resize_file(bin, uint64_t(64) << 20);
+    LoadOptions options;
+    options.maxMemoryBytes = uint64_t(16) << 20;
+    const Result<Scene> big = loadGltf(file, options);
+    ASSERT_FALSE(big.ok());
+    EXPECT_EQ(big.error().code, ErrorCode::InconsistentSize);
+    std::string expected = file.string();
+    expected += ": buffers[0].uri 'external.bin' holds 67108864 bytes, but ";
+    expected += "buffers[0].byteLength is ";
+    expected += std::to_string(length);
+    EXPECT_TRUE(big.error().message.starts_with(expected)) << big.error().message;
+
+    fs::resize_file(bin, length - 1);
+    const Result<Scene> short_file = loadGltf(file, options);
+    ASSERT_FALSE(short_file.ok());
+    std::string holds = "holds ";
+    holds += std::to_string(length - 1);
+    EXPECT_TRUE(contains(short_file.error().message, holds)) << short_file.error().message;
+}
+
 TEST(GltfErrors, MalformedJsonAndBrokenContainers) {
     TempDir dir;
     const std::vector<std::pair<std::string, std::string>> cases = {
