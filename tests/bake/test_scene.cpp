@@ -379,6 +379,37 @@ TEST(GltfGeometry, SparseInterleavedAndQuantizedAccessors) {
     EXPECT_EQ(scene.uvs[c.z], glm::vec2(0, 0)) << "no TEXCOORD_0";
 }
 
+// Issue 31 class 6: normals with denormal components, and huge ones, keep their direction and
+// come out unit length; a zero normal stays zero (the face normal is used).
+TEST(GltfGeometry, DenormalAndHugeNormalsAreNormalised) {
+    TempDir dir;
+    GltfBuilder builder;
+    const int pos = builder.addPositions({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}});
+    const float tiny = std::numeric_limits<float>::denorm_min(); // 1.4e-45
+    const std::vector<float> normals = {1e-40f, 0, 0, 3e38f, 3e38f, 0, 0, tiny, tiny, 0, 0, 0};
+    const int nrm = builder.addAccessor({{"bufferView", builder.addView(normals)},
+                                         {"componentType", 5126},
+                                         {"count", 4},
+                                         {"type", "VEC3"}});
+    const int idx = builder.addIndices(std::vector<uint16_t>{0, 1, 2, 1, 3, 2}, 5123);
+    builder.setScene({builder.addNode(
+        {{"mesh",
+          builder.addMesh(json::array(
+              {{{"attributes", {{"POSITION", pos}, {"NORMAL", nrm}}}, {"indices", idx}}}))}})});
+    const Result<Scene> result = loadGltf(builder.writeEmbedded(dir / "normals.gltf"));
+    ASSERT_TRUE(result.ok()) << result.error().message;
+    const Scene& scene = result.value();
+    ASSERT_EQ(scene.normals.size(), 4u);
+    const float half = std::sqrt(0.5f);
+    EXPECT_EQ(scene.normals[0], glm::vec3(1, 0, 0));
+    EXPECT_NEAR(scene.normals[1].x, half, 1e-7f);
+    EXPECT_NEAR(scene.normals[1].y, half, 1e-7f);
+    EXPECT_EQ(scene.normals[1].z, 0.0f);
+    EXPECT_NEAR(scene.normals[2].y, half, 1e-7f);
+    EXPECT_NEAR(scene.normals[2].z, half, 1e-7f);
+    EXPECT_EQ(scene.normals[3], glm::vec3(0.0f));
+}
+
 TEST(GltfGeometry, AFileWithoutGeometryIsValid) {
     TempDir dir;
     GltfBuilder builder;
