@@ -1253,7 +1253,7 @@ std::string describeConfig(const BakeConfig& c) {
     return j.dump(-1, ' ', false, Json::error_handler_t::replace);
 }
 
-Result<Environment> makeEnvironment(const EnvironmentConfig& config) {
+Result<Environment> makeEnvironment(const EnvironmentConfig& config, uint64_t max_bytes) {
     Environment env;
     switch (config.type) {
     case EnvironmentConfig::Type::Black:
@@ -1265,7 +1265,7 @@ Result<Environment> makeEnvironment(const EnvironmentConfig& config) {
         env.rotationDeg = config.rotationDeg;
         return env;
     case EnvironmentConfig::Type::LatLong:
-        return loadLatLongEnvironment(config.file, config.intensity, config.rotationDeg);
+        return loadLatLongEnvironment(config.file, config.intensity, config.rotationDeg, max_bytes);
     }
     return env;
 }

@@ -61,6 +61,14 @@ Result<void> validateBounds(const Aabb& bounds) {
                                  std::to_string(bounds.min[axis]) + " >= max " +
                                  std::to_string(bounds.max[axis]) + ")");
         }
+        // Both ends finite but far apart (-3e38 to 3e38): the extent, and with it every cell
+        // size and probe position computed from it, is infinite or NaN in float.
+        if (!std::isfinite(bounds.max[axis] - bounds.min[axis])) {
+            return makeError(ErrorCode::NonFinite,
+                             std::string("bounds.") + kAxes[axis] + " extent max - min " +
+                                 "overflows float (min " + std::to_string(bounds.min[axis]) +
+                                 ", max " + std::to_string(bounds.max[axis]) + ")");
+        }
     }
     return {};
 }

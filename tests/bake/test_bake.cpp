@@ -86,6 +86,10 @@ TEST(BakeConfig, ErrorsNameFileAndField) {
         // not a parse_error, and once escaped parseBakeConfig and terminated the process.
         {R"({"scale": 1.901e308})", "bake.json: not valid JSON: [json.exception.out_of_range.406] "
                                     "number overflow parsing '1.901e308'"},
+        // Issue 31 class 6: nlohmann keeps the last of two equal keys silently.
+        {R"({"path": {"samples": 64, "samples": 4096}})", "bake.json: path.samples: given twice"},
+        {R"({"volumes": [{}, {"name": "a", "name": "b"}]})",
+         "bake.json: volumes[1].name: given twice"},
     };
     test::expectConfigErrors(cases);
 }

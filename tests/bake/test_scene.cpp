@@ -379,6 +379,37 @@ TEST(GltfGeometry, SparseInterleavedAndQuantizedAccessors) {
     EXPECT_EQ(scene.uvs[c.z], glm::vec2(0, 0)) << "no TEXCOORD_0";
 }
 
+// Issue 31 class 6: normals with denormal components, and huge ones, keep their direction and
+// come out unit length; a zero normal stays zero (the face normal is used).
+TEST(GltfGeometry, DenormalAndHugeNormalsAreNormalised) {
+    TempDir dir;
+    GltfBuilder builder;
+    const int pos = builder.addPositions({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}});
+    const float tiny = std::numeric_limits<float>::denorm_min(); // 1.4e-45
+    const std::vector<float> normals = {1e-40f, 0, 0, 3e38f, 3e38f, 0, 0, tiny, tiny, 0, 0, 0};
+    const int nrm = builder.addAccessor({{"bufferView", builder.addView(normals)},
+                                         {"componentType", 5126},
+                                         {"count", 4},
+                                         {"type", "VEC3"}});
+    const int idx = builder.addIndices(std::vector<uint16_t>{0, 1, 2, 1, 3, 2}, 5123);
+    builder.setScene({builder.addNode(
+        {{"mesh",
+          builder.addMesh(json::array(
+              {{{"attributes", {{"POSITION", pos}, {"NORMAL", nrm}}}, {"indices", idx}}}))}})});
+    const Result<Scene> result = loadGltf(builder.writeEmbedded(dir / "normals.gltf"));
+    ASSERT_TRUE(result.ok()) << result.error().message;
+    const Scene& scene = result.value();
+    ASSERT_EQ(scene.normals.size(), 4u);
+    const float half = std::sqrt(0.5f);
+    EXPECT_EQ(scene.normals[0], glm::vec3(1, 0, 0));
+    EXPECT_NEAR(scene.normals[1].x, half, 1e-7f);
+    EXPECT_NEAR(scene.normals[1].y, half, 1e-7f);
+    EXPECT_EQ(scene.normals[1].z, 0.0f);
+    EXPECT_NEAR(scene.normals[2].y, half, 1e-7f);
+    EXPECT_NEAR(scene.normals[2].z, half, 1e-7f);
+    EXPECT_EQ(scene.normals[3], glm::vec3(0.0f));
+}
+
 TEST(GltfGeometry, AFileWithoutGeometryIsValid) {
     TempDir dir;
     GltfBuilder builder;
@@ -614,6 +645,35 @@ TEST(GltfErrors, MissingExternalBufferOrTexture) {
     EXPECT_TRUE(contains(no_texture.error().message, textured.string()))
         << no_texture.error().message;
     EXPECT_TRUE(contains(no_texture.error().message, "nowhere.png")) << no_texture.error().message;
+}
+
+// Issue 31 class 5: a buffer file larger than its byteLength was read whole (charged to the
+// memory limit, or refused by it) before tinygltf refused the size. Its size is now checked
+// from the file system first; the 64 MiB file here is sparse and never read.
+TEST(GltfErrors, ABufferFileOfTheWrongSizeIsRefusedBeforeItIsRead) {
+    TempDir dir;
+    const GltfBuilder builder = quadDocument(4, nullptr);
+    const fs::path file = builder.writeExternal(dir / "external.gltf");
+    const fs::path bin = fs::path(file).replace_extension(".bin");
+    const uint64_t length = fs::file_size(bin);
+    fs::resize_file(bin, uint64_t(64) << 20);
+    LoadOptions options;
+    options.maxMemoryBytes = uint64_t(16) << 20;
+    const Result<Scene> big = loadGltf(file, options);
+    ASSERT_FALSE(big.ok());
+    EXPECT_EQ(big.error().code, ErrorCode::InconsistentSize);
+    std::string expected = file.string();
+    expected += ": buffers[0].uri 'external.bin' holds 67108864 bytes, but ";
+    expected += "buffers[0].byteLength is ";
+    expected += std::to_string(length);
+    EXPECT_TRUE(big.error().message.starts_with(expected)) << big.error().message;
+
+    fs::resize_file(bin, length - 1);
+    const Result<Scene> short_file = loadGltf(file, options);
+    ASSERT_FALSE(short_file.ok());
+    std::string holds = "holds ";
+    holds += std::to_string(length - 1);
+    EXPECT_TRUE(contains(short_file.error().message, holds)) << short_file.error().message;
 }
 
 TEST(GltfErrors, MalformedJsonAndBrokenContainers) {
@@ -932,6 +992,41 @@ TEST(EnvironmentLatLong, GreyMapsAndPfmOrientation) {
     EXPECT_EQ(image.texels[7], glm::vec4(4, 4, 4, 1));
 }
 
+// Issue 31 class 6: an 8-bit (or 16-bit) sRGB PNG stores encoded values, not radiance; read as
+// they stand, sRGB 188 gave 0.737 instead of 0.5029 (1.47x) and mid-grey 128 gave 0.502 instead
+// of 0.2159 (2.3x). The colour channels are decoded, alpha is not used.
+TEST(EnvironmentLatLong, SrgbPngMapsAreDecodedToLinear) {
+    TempDir dir;
+    std::vector<uint16_t> rgba(4 * 2 * 4, 255);
+    rgba[0] = 188;
+    rgba[1] = 128;
+    rgba[2] = 0;
+    rgba[4] = 10; // below the sRGB curve's linear segment's end (0.04045 x 255 = 10.3)
+    const fs::path file8 = dir / "sky8.png";
+    const std::vector<uint8_t> png8 = encodePng(4, 2, 8, rgba);
+    writeBytes(file8, png8.data(), png8.size());
+    const Result<Environment> env8 = loadLatLongEnvironment(file8, 1.0f, 0.0f);
+    ASSERT_TRUE(env8.ok()) << env8.error().message;
+    const Image& image8 = env8.value().image;
+    ASSERT_EQ(image8.width, 4u);
+    EXPECT_NEAR(image8.texels[0].x, 0.5029f, 1e-4f);
+    EXPECT_NEAR(image8.texels[0].y, 0.2158605f, 1e-6f);
+    EXPECT_EQ(image8.texels[0].z, 0.0f);
+    EXPECT_NEAR(image8.texels[1].x, 10.0f / 255.0f / 12.92f, 1e-7f);
+    EXPECT_EQ(image8.texels[7], glm::vec4(1.0f));
+
+    // 16 bits: 32768 / 65535 is sRGB 0.5, linear 0.21404.
+    std::vector<uint16_t> rgba16(4 * 2 * 4, 65535);
+    rgba16[0] = 32768;
+    const fs::path file16 = dir / "sky16.png";
+    const std::vector<uint8_t> png16 = encodePng(4, 2, 16, rgba16);
+    writeBytes(file16, png16.data(), png16.size());
+    const Result<Environment> env16 = loadLatLongEnvironment(file16, 1.0f, 0.0f);
+    ASSERT_TRUE(env16.ok()) << env16.error().message;
+    EXPECT_NEAR(env16.value().image.texels[0].x, 0.21404114f, 1e-5f);
+    EXPECT_EQ(env16.value().image.texels[0].y, 1.0f);
+}
+
 // Issue 17: the map is untrusted input like the scene. A FIFO is refused without waiting on it
 // (before, is_regular_file refused it too, but as "no such file"), and a header claiming more
 // pixels than the limit is refused before its pixels are allocated (the file holds 20 bytes).
@@ -958,6 +1053,37 @@ TEST(EnvironmentErrors, SpecialFilesAndForgedHeaders) {
                                                    ": 40000 x 20000 pixels, more than the "
                                                    "environment map limit of 67108864"))
         << huge.error().message;
+}
+
+// Issue 31 class 5: the memory limit applies to the map's decode, from its header, before the
+// pixels are allocated. This 20-byte PFM claims 11584 x 5792 RGB pixels (within the pixel
+// limit): 768 MiB of float pixels and 1024 MiB of texels. Before, the pixels were allocated
+// whatever max_memory_mb said and the refusal came from the decode, as an I/O error.
+TEST(EnvironmentErrors, TheMemoryLimitAppliesBeforeTheDecode) {
+    TempDir dir;
+    const fs::path forged = dir / "forged.pfm";
+    writeText(forged, "PF\n11584 5792\n-1.0\n");
+    const Result<Environment> env =
+        loadLatLongEnvironment(forged, 1.0f, 0.0f, uint64_t(1024) << 20);
+    ASSERT_FALSE(env.ok());
+    EXPECT_EQ(env.error().code, ErrorCode::OutOfRange);
+    std::string expected = forged.string();
+    expected += ": the environment map decodes to 1791 MiB (11584 x 5792 pixels, 3 channels as ";
+    expected += "float, then RGBA float texels), more than the memory limit of 1024 MiB";
+    EXPECT_TRUE(env.error().message.starts_with(expected)) << env.error().message;
+
+    // Through the config, as probekit bake passes max_memory_mb: a real 4 x 2 map needs
+    // 8 x (12 + 16) = 224 bytes.
+    const fs::path small = dir / "small.pfm";
+    writePfm(small, 4, 2, 3, std::vector<float>(24, 1.0f));
+    EnvironmentConfig config;
+    config.type = EnvironmentConfig::Type::LatLong;
+    config.file = small.string();
+    EXPECT_TRUE(makeEnvironment(config, 224).ok());
+    const Result<Environment> refused = makeEnvironment(config, 223);
+    ASSERT_FALSE(refused.ok());
+    EXPECT_TRUE(refused.error().message.starts_with(small.string() + ": the environment map"))
+        << refused.error().message;
 }
 
 TEST(EnvironmentErrors, MissingUnreadableWrongShapeAndBadTexels) {

@@ -26,6 +26,27 @@ expect 2 "target_error: must be in \\(0, 1\\)" -- \
 expect 2 "--noise-target: path.noise_target: must be in \\[0, 1\\)" -- \
     "$pk" bake cornell.gltf -o flag.pvol --noise-target 1
 check "no output after a bad flag" test ! -e flag.pvol
+# Issue 31 class 6: every floating-point flag of every command is finite (CLI11 reads "nan",
+# "inf" and "1e999" as numbers); a NaN exposure wrote a black image.
+expect 2 '--exposure: "nan" is not a finite number' -- \
+    "$pk" render cornell.gltf small.pvol -o nan.png --exposure nan
+expect 2 '--exposure: "inf" is not a finite number' -- \
+    "$pk" render cornell.gltf small.pvol -o nan.png --exposure inf
+expect 2 '--exposure: "1e999" is not a finite number' -- \
+    "$pk" render cornell.gltf small.pvol -o nan.png --exposure 1e999
+expect 2 '--normal-offset: "-inf" is not a finite number' -- \
+    "$pk" render cornell.gltf small.pvol -o nan.png --normal-offset -inf
+expect 2 '--sun-path: "nan" is not a finite number' -- \
+    "$pk" render cornell.gltf -o nan.png --dynamic-gi --sun-path 0,nan,90,45
+expect 2 '--gi-cell: "nan" is not a finite number' -- \
+    "$pk" render cornell.gltf -o nan.png --dynamic-gi --gi-cell nan
+expect 2 '--tolerance: "nan" is not a finite number' -- "$pk" diff a.pvol b.pvol --tolerance nan
+expect 2 '--sky: "inf" is not a finite number' -- "$pk" synth -o nan.pvol --sky 1,inf,1
+expect 2 '--fov: "nan" is not a finite number' -- "$pk" render cornell.gltf small.pvol \
+    -o nan.png --fov nan
+expect 1 '--env: radiance must be finite \(got "nan,1,1"\)' -- \
+    "$pk" bake cornell.gltf -o flag.pvol --env nan,1,1
+check "no output after a non-finite flag" test ! -e nan.png -a ! -e nan.pvol -a ! -e flag.pvol
 # Adaptive sampling: the bake says what it spent; bench-noise measures it against fixed.
 expect 0 "adaptive sampling to noise 0.2: [0-9]+ directions per probe on average, [0-9]+ at most \\(cap 1024\\)" -- \
     "$pk" bake cornell.gltf -o adaptive.pvol --resolution 2,2,2 --samples 16 \
@@ -43,6 +64,14 @@ expect 0 "wrote small.pvol" -- "$pk" bake cornell.gltf -o small.pvol --resolutio
 check "report names the bake figures" grep -q '"mrays_per_second"' report.json
 expect 0 "valid \(1 volume" -- "$pk" validate small.pvol
 expect 0 '"resolution": \[' -- "$pk" info small.pvol --json
+# Issue 31 class 6: output that cannot be written fails the command, whichever prints it.
+full_stdout() { "$@" >/dev/full; }
+expect 1 "probekit info: cannot write standard output: No space left on device" -- \
+    full_stdout "$pk" info small.pvol --json
+expect 1 "probekit diff: cannot write standard output: No space left on device" -- \
+    full_stdout "$pk" diff small.pvol small.pvol
+expect 1 "probekit bench-rays: cannot write standard output: No space left on device" -- \
+    full_stdout "$pk" bench-rays cornell.gltf --rays 1000 --threads 1
 expect 0 "wrote courtyard.pvol" -- "$pk" bake courtyard.gltf -o courtyard.pvol \
     --config "$repo/examples/courtyard-bake.json" --samples 8
 

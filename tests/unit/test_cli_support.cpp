@@ -190,6 +190,28 @@ TEST(JsonText, NestingIsLimitedAndErrorsNameTheSource) {
         << bad.error().message;
 }
 
+// A key given twice in one object is refused with its path, at any depth and inside arrays;
+// the same key in two different objects is not a repeat.
+TEST(JsonText, AKeyGivenTwiceIsRefusedWithItsPath) {
+    const Result<nlohmann::json> top =
+        parseJsonText<nlohmann::json>("{\"seed\": 1, \"seed\": 2}", "cfg.json");
+    ASSERT_FALSE(top.ok());
+    EXPECT_EQ(top.error().code, ErrorCode::InvalidArgument);
+    EXPECT_EQ(top.error().message, "cfg.json: seed: given twice");
+
+    const std::string nested = R"({"volumes": [{"name": "a", "bounds": {"min": [0, 0, 0]}},
+        {"name": "b", "bounds": {"min": [1, 1, 1], "max": [2, 2, 2], "min": [0, 0, 0]}}]})";
+    const Result<nlohmann::json> deep = parseJsonText<nlohmann::json>(nested, "cfg.json");
+    ASSERT_FALSE(deep.ok());
+    EXPECT_EQ(deep.error().message, "cfg.json: volumes[1].bounds.min: given twice");
+
+    const std::string distinct = R"({"a": {"x": 1}, "b": {"x": 2}, "c": [{"x": 3}, {"x": 4}]})";
+    const Result<nlohmann::json> ok = parseJsonText<nlohmann::json>(distinct, "cfg.json");
+    ASSERT_TRUE(ok.ok()) << ok.error().message;
+    EXPECT_EQ(ok.value()["c"][1]["x"], 4);
+    EXPECT_EQ(ok.value()["b"]["x"], 2);
+}
+
 TEST(InfoFormat, AnInvalidVolumeGivesAnErrorNotACrash) {
     PvolFile file;
     file.volumes.emplace_back(); // no texels, validity or grid to speak of

@@ -58,6 +58,13 @@ TEST(GridBounds, RejectsInvertedEmptyAndNonFinite) {
               ErrorCode::NonFinite);
     EXPECT_EQ(validateBounds({glm::vec3(0), glm::vec3(INFINITY, 1, 1)}).error().code,
               ErrorCode::NonFinite);
+    // Finite ends whose difference is not (issue 31): the extent 6e38 overflows float.
+    const Result<void> wide = validateBounds({glm::vec3(0, 0, -3e38f), glm::vec3(1, 1, 3e38f)});
+    ASSERT_FALSE(wide.ok());
+    EXPECT_EQ(wide.error().code, ErrorCode::NonFinite);
+    EXPECT_TRUE(wide.error().message.starts_with("bounds.z extent max - min overflows float"))
+        << wide.error().message;
+    EXPECT_TRUE(validateBounds({glm::vec3(0, 0, -1e38f), glm::vec3(1, 1, 1e38f)}).ok());
 }
 
 TEST(GridLayout, CenterModePlacesProbesAtCellCentres) {

@@ -1148,6 +1148,15 @@ TEST_F(PvolReject, InfiniteBounds) {
                                ErrorCode::NonFinite, "bounds.z is not finite");
 }
 
+// Issue 31 class 6: both ends finite, the extent not: -3e38 to 3e38 is 6e38, beyond float.
+// `validate` accepted it; every cell size and probe position made from it was inf or NaN.
+TEST_F(PvolReject, BoundsWhoseExtentOverflowsFloat) {
+    SampleFile sample = sampleFile();
+    storeAt<float>(sample.bytes, sample.target.boundsMin + 4, -3e38f);
+    expectEditRejected<float>(sample, &VolumeOffsets::boundsMax, 4, 3e38f, ErrorCode::NonFinite,
+                              targetLabel() + "bounds.y extent max - min overflows float");
+}
+
 TEST_F(PvolReject, InvertedBounds) {
     // max.y below min.y
     expectFieldRejected<float>(&VolumeOffsets::boundsMax, 4, -10.0f, ErrorCode::OutOfRange,

@@ -1,6 +1,7 @@
 // `probekit bake`, `probekit scene` and `probekit bench-rays`.
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
@@ -95,6 +96,10 @@ Result<baker::EnvironmentConfig> parseEnvFlag(const std::string& value) {
     if (std::sscanf(value.c_str(), "%f,%f,%f%c", &rgb[0], &rgb[1], &rgb[2], &tail) == 3) {
         e.type = baker::EnvironmentConfig::Type::Constant;
         e.radiance = glm::vec3(rgb[0], rgb[1], rgb[2]);
+        if (!std::isfinite(rgb[0]) || !std::isfinite(rgb[1]) || !std::isfinite(rgb[2])) {
+            return makeError(ErrorCode::OutOfRange,
+                             "--env: radiance must be finite (got \"" + value + "\")");
+        }
         if (e.radiance.x < 0 || e.radiance.y < 0 || e.radiance.z < 0) {
             return makeError(ErrorCode::OutOfRange, "--env: radiance must be >= 0");
         }
@@ -221,7 +226,8 @@ Result<baker::Scene> loadScene(const BakeOptionsCli& o, const baker::BakeConfig&
     if (!scene) {
         return scene;
     }
-    Result<baker::Environment> environment = baker::makeEnvironment(config.environment);
+    Result<baker::Environment> environment =
+        baker::makeEnvironment(config.environment, config.maxMemoryBytes);
     if (!environment) {
         // Said where the map was named: the flag, or the config file and its field.
         const std::string where = o.env              ? std::string("--env")

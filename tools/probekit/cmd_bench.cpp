@@ -404,7 +404,7 @@ Result<BenchScene> loadBenchScene(const BenchOptions& o, const baker::BakeConfig
     if (!scene) {
         return scene.error();
     }
-    Result<baker::Environment> env = baker::makeEnvironment(base.environment);
+    Result<baker::Environment> env = baker::makeEnvironment(base.environment, base.maxMemoryBytes);
     if (!env) {
         return env.error();
     }

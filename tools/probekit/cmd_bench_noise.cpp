@@ -215,7 +215,7 @@ Result<baker::Scene> loadNoiseScene(const BenchNoiseOptions& o, const baker::Bak
     if (!scene) {
         return scene;
     }
-    Result<baker::Environment> env = baker::makeEnvironment(base.environment);
+    Result<baker::Environment> env = baker::makeEnvironment(base.environment, base.maxMemoryBytes);
     if (!env) {
         return env.error();
     }

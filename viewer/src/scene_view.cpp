@@ -176,6 +176,10 @@ Result<Environment> environmentFromSpec(const std::string& spec, const std::stri
     if (spec == "none") {
         env = {{"type", "black"}};
     } else if (std::sscanf(spec.c_str(), "%f,%f,%f%c", &rgb[0], &rgb[1], &rgb[2], &tail) == 3) {
+        if (!std::isfinite(rgb[0]) || !std::isfinite(rgb[1]) || !std::isfinite(rgb[2])) {
+            return makeError(ErrorCode::OutOfRange,
+                             source + ": radiance must be finite (got \"" + spec + "\")");
+        }
         env = {{"type", "constant"}, {"radiance", {rgb[0], rgb[1], rgb[2]}}};
     } else {
         env = {{"type", "latlong"}, {"file", spec}};
@@ -224,7 +228,14 @@ Result<Volume> placeholderVolume(const baker::Scene& scene) {
     desc.name = "no-volume";
     grid::Aabb box = scene.bounds;
     box.max = glm::max(box.max, box.min + glm::vec3(1e-3f));
-    desc.grid = grid::GridLayout(box, glm::uvec3(2), grid::PositionMode::Corner);
+    // make, not the constructor: a scene whose extent overflows float is an error, not a
+    // failed precondition.
+    Result<grid::GridLayout> layout =
+        grid::GridLayout::make(box, glm::uvec3(2), grid::PositionMode::Corner);
+    if (!layout) {
+        return makeError(layout.error().code, "the scene's bounds: " + layout.error().message);
+    }
+    desc.grid = layout.value();
     desc.shOrder = sh::Order::L1;
     const std::vector<sh::ShRgb> zeros(8);
     return makeVolume(desc, zeros);

@@ -2,6 +2,7 @@
 //
 // The mapping from texels to directions is documented once, on Environment in scene.hpp.
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <exception>
 #include <string>
@@ -79,6 +80,60 @@ Result<void> checkLatLongSpec(const OIIO::ImageSpec& spec, int channels, const s
     return {};
 }
 
+// Whether the file's values are sRGB-encoded, not linear radiance: integer pixels (8 or 16 bits)
+// whose colour space OIIO reports as sRGB, or, when it reports none, a PNG or JPEG (formats
+// whose integers are sRGB unless they say otherwise). Float files (EXR, HDR, PFM) are linear.
+bool storesSrgb(const OIIO::ImageSpec& spec, const std::string& format_name) {
+    if (spec.format.is_floating_point()) {
+        return false;
+    }
+    std::string space = spec.get_string_attribute("oiio:ColorSpace");
+    std::transform(space.begin(), space.end(), space.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    if (space.empty()) {
+        return format_name == "png" || format_name == "jpeg";
+    }
+    return space.find("srgb") != std::string::npos && !space.starts_with("lin");
+}
+
+// The sRGB transfer function undone: encoded value in [0, 1] to linear (IEC 61966-2-1).
+float srgbToLinear(float encoded) {
+    const double c = encoded;
+    return static_cast<float>(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
+}
+
+// Decodes the colour channels (the first three, or the grey one) of sRGB pixels to linear in
+// place; alpha and further channels are left as they are (they carry no radiance).
+void decodeSrgb(std::vector<float>& pixels, int channels) {
+    const int colour_channels = channels >= 3 ? 3 : 1;
+    for (size_t p = 0; p < pixels.size(); p += size_t(channels)) {
+        for (int c = 0; c < colour_channels; ++c) {
+            pixels[p + size_t(c)] = srgbToLinear(pixels[p + size_t(c)]);
+        }
+    }
+}
+
+// The memory the decode takes, from the header alone: the pixels read as floats (the channels
+// read, 4 bytes each) and the RGBA float texels they become, both held at once. Refused when
+// over `max_bytes` (the bake's max_memory_mb), before either is allocated: a 664 KB EXR of
+// 11585 x 5792 constant pixels decodes to 2.1 GB.
+Result<void> checkDecodeMemory(int width, int height, int channels, uint64_t max_bytes,
+                               const std::string& file) {
+    const uint64_t pixels = uint64_t(width) * uint64_t(height);
+    const uint64_t bytes = pixels * (uint64_t(channels) * sizeof(float) + sizeof(glm::vec4));
+    if (bytes <= max_bytes) {
+        return {};
+    }
+    return makeError(ErrorCode::OutOfRange,
+                     file + ": the environment map decodes to " + std::to_string(bytes >> 20) +
+                         " MiB (" + std::to_string(width) + " x " + std::to_string(height) +
+                         " pixels, " + std::to_string(channels) +
+                         " channels as float, then RGBA float texels), more than the memory "
+                         "limit of " +
+                         std::to_string(max_bytes >> 20) +
+                         " MiB (max_memory_mb, --max-memory); downsample the map");
+}
+
 // The decoded pixels as RGB texels: one or two channels are grey (+ alpha); otherwise the first
 // three are RGB. Alpha and extra channels carry no radiance and are ignored. Every radiance must
 // be finite and >= 0.
@@ -107,7 +162,7 @@ Result<void> storeTexels(const std::vector<float>& pixels, int channels, const s
 } // namespace
 
 Result<Environment> loadLatLongEnvironment(const std::filesystem::path& path, float intensity,
-                                           float rotation_deg) {
+                                           float rotation_deg, uint64_t max_bytes) {
     const std::string file = path.string();
     if (!std::isfinite(intensity) || intensity < 0.0f) {
         return makeError(ErrorCode::OutOfRange, file + ": environment intensity " +
@@ -134,11 +189,20 @@ Result<Environment> loadLatLongEnvironment(const std::filesystem::path& path, fl
         if (Result<void> shape = checkLatLongSpec(spec, channels, file); !shape) {
             return shape.error();
         }
+        if (Result<void> memory = checkDecodeMemory(width, height, channels, max_bytes, file);
+            !memory) {
+            return memory.error();
+        }
         std::vector<float> pixels(size_t(width) * size_t(height) * size_t(channels));
         // Reading as FLOAT makes OIIO convert whatever the file stores (RGBE, half, 8-bit).
         if (!input->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, pixels.data())) {
             return makeError(ErrorCode::Io,
                              file + ": cannot decode the pixels (" + input->geterror() + ")");
+        }
+        // OIIO scales integers to [0, 1] but leaves their transfer function: an 8-bit sRGB
+        // PNG read as it stands is up to 2.3 times too bright in the mid-tones.
+        if (storesSrgb(spec, input->format_name())) {
+            decodeSrgb(pixels, channels);
         }
         input->close();
 

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <string_view>
 
@@ -795,6 +796,7 @@ private:
             }
         } else {
             fileUri(path, uri, true);
+            bufferFileSize(path, uri, length);
             return; // readRegularFile charges what it reads
         }
         if (!m_budget.fits(length)) {
@@ -814,6 +816,24 @@ private:
             fail(ErrorCode::Io, field + ": no such file in " +
                                     (m_folder.base().empty() ? std::string("the scene's folder")
                                                              : m_folder.base()));
+        }
+    }
+
+    // A buffer file's size from stat, before tinygltf reads it: tinygltf takes only a file of
+    // exactly byteLength bytes, but reads the whole file first, so a 10 MB buffer beside a
+    // byteLength of 12 was read in full (up to the memory budget) only to be refused.
+    void bufferFileSize(const std::string& path, const std::string& uri, uint64_t length) const {
+        const AssetFolder::Resolved resolved = m_folder.resolve(percentDecoded(uri));
+        if (resolved.kind != AssetFolder::Resolved::File) {
+            return; // the folder rule's refusal is fileUri's
+        }
+        std::error_code ec;
+        const uint64_t bytes = std::filesystem::file_size(resolved.path, ec);
+        if (!ec && bytes != length) {
+            fail(ErrorCode::InconsistentSize,
+                 join(path, "uri") + " '" + uri + "' holds " + std::to_string(bytes) +
+                     " bytes, but " + join(path, "byteLength") + " is " + std::to_string(length) +
+                     " (the file must hold exactly byteLength bytes)");
         }
     }
 

@@ -37,11 +37,18 @@ const char* modeName(int mode) {
 }
 
 // A glTF NORMAL (three floats) in world space, unit length; zero when it is not finite or
-// vanishes (the renderer then falls back to the face normal).
+// vanishes (the renderer then falls back to the face normal). Divided by its largest component
+// before its length is taken, so that the squares in the length neither underflow (denormal
+// components) nor overflow (1e38 through a node's inverse scale) and any non-zero finite
+// normal keeps its direction.
 glm::vec3 worldNormal(const glm::dmat3& normal_matrix, const float* n) {
     const glm::dvec3 w = normal_matrix * glm::dvec3(n[0], n[1], n[2]);
-    const double length = glm::length(w);
-    return isFinite(w) && length > 0.0 ? glm::vec3(w / length) : glm::vec3(0.0f);
+    const double largest = std::max({std::abs(w.x), std::abs(w.y), std::abs(w.z)});
+    if (!isFinite(w) || !(largest > 0.0)) {
+        return glm::vec3(0.0f);
+    }
+    const glm::dvec3 scaled = w / largest;
+    return glm::vec3(scaled / glm::length(scaled));
 }
 
 } // namespace

@@ -297,7 +297,9 @@ constexpr uint64_t kMaxConfigBytes = uint64_t(16) << 20;
 // The config with every default filled in, as JSON (recorded in the file's metadata).
 std::string describeConfig(const BakeConfig& config);
 
-// Builds the scene's environment from the config (loads lat-long images).
-Result<Environment> makeEnvironment(const EnvironmentConfig& config);
+// Builds the scene's environment from the config (loads lat-long images, refusing one whose
+// decode needs more than `max_bytes`: pass the bake's maxMemoryBytes).
+Result<Environment> makeEnvironment(const EnvironmentConfig& config,
+                                    uint64_t max_bytes = UINT64_MAX);
 
 } // namespace probekit::baker

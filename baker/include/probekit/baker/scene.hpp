@@ -53,9 +53,12 @@ struct Material {
     bool isEmissive() const { return emission.x > 0 || emission.y > 0 || emission.z > 0; }
 };
 
-// Loads an environment from a lat-long HDR/EXR (OpenImageIO). Errors name the file.
+// Loads an environment from a lat-long HDR/EXR (OpenImageIO). Errors name the file. 8- and
+// 16-bit integer images in sRGB (PNG and JPEG unless they say otherwise) are decoded to linear.
+// A map whose decode (the pixels as float, then the RGBA texels) would take more than
+// `max_bytes` is refused from its header, before the pixels are read.
 Result<Environment> loadLatLongEnvironment(const std::filesystem::path& path, float intensity,
-                                           float rotation_deg);
+                                           float rotation_deg, uint64_t max_bytes = UINT64_MAX);
 
 struct SceneNode {
     std::string name;
