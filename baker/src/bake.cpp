@@ -808,10 +808,6 @@ float maxComponent(glm::vec3 v) {
     return std::max({v.x, v.y, v.z});
 }
 
-// makeVolume refuses coefficients that are not finite or beyond the texel bound (volume.hpp).
-// In a bake that means the light was too strong for float sums somewhere (the loader refuses
-// intensities and emission above kMaxEmission, but a light or emitter almost touching a probe can
-// still overflow): name the scene and its brightest light, so the user knows where to look.
 // Half storage holds coefficients up to kHalfMax (65504). A volume whose probes pass it (a
 // light's intensity in other units, a probe beside a bright light) is stored in float and the
 // bake says so, rather than failing once the work is done.
@@ -833,17 +829,20 @@ VolumeDesc storableDesc(VolumeDesc desc, std::span<const sh::ShRgb> probes,
         }
     }
     if (largest > kHalfMax) {
-        char text[160];
-        std::snprintf(text, sizeof text,
-                      "volume '%s': SH coefficient %.4g (probe %zu) is past the half-float "
-                      "maximum 65504; stored as float (--format float chooses it up front)",
-                      desc.name.c_str(), double(largest), largest_probe);
-        warnings.emplace_back(text);
+        char value[64];
+        std::snprintf(value, sizeof value, "%.4g (probe %zu)", double(largest), largest_probe);
+        warnings.push_back("volume '" + desc.name + "': SH coefficient " + value +
+                           " is past the half-float maximum 65504; stored as float (--format "
+                           "float chooses it up front)");
         desc.storage = Storage::Float32;
     }
     return desc;
 }
 
+// makeVolume refuses coefficients that are not finite or beyond the texel bound (volume.hpp).
+// In a bake that means the light was too strong for float sums somewhere (the loader refuses
+// intensities and emission above kMaxEmission, but a light or emitter almost touching a probe can
+// still overflow): name the scene and its brightest light, so the user knows where to look.
 Result<Volume> checkedVolume(const Scene& scene, Result<Volume> volume) {
     if (volume) {
         return volume;

@@ -685,8 +685,10 @@ int runBakeProcess(const BakeOptionsCli& all, const DistributedBake* job) {
     const BakeOptionsCli o = processOptions(all, rank0);
     // A bad -o or --report fails before the bake, not after it (on rank 0, the only one that
     // writes them: other nodes need not see their folders); checked again with the scene's files.
-    if (Result<void> outputs = checkBakeOutputs(o, nullptr, nullptr); rank0 && !outputs) {
-        return fail(outputs.error());
+    if (rank0) {
+        if (Result<void> outputs = checkBakeOutputs(o, nullptr, nullptr); !outputs) {
+            return fail(outputs.error());
+        }
     }
     Result<baker::BakeConfig> config = configFromOptions(o);
     if (!config) {
@@ -696,9 +698,10 @@ int runBakeProcess(const BakeOptionsCli& all, const DistributedBake* job) {
     if (!scene) {
         return fail(scene.error());
     }
-    if (Result<void> outputs = checkBakeOutputs(o, &config.value(), &scene.value());
-        rank0 && !outputs) {
-        return fail(outputs.error());
+    if (rank0) {
+        if (Result<void> outputs = checkBakeOutputs(o, &config.value(), &scene.value()); !outputs) {
+            return fail(outputs.error());
+        }
     }
     // bake() refuses an unlit scene too; checked here before --target-error's pilot runs.
     if (Result<void> lit = baker::checkSceneLit(scene.value()); !lit && !o.allowUnlit) {

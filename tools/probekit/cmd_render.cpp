@@ -66,8 +66,9 @@ struct RenderOptions {
     std::string giQuality = "l1";
 };
 
-// An image render writes checked against the files it reads (file_io.hpp, checkOutputs); the
-// scene's buffers and images are checked by name when the scene is a .gltf beside them.
+// An image render writes, checked (file_io.hpp, checkOutputs) against the files named on its
+// command line: the scene file, the volume and an --env map. The scene's buffers and images
+// are not among them: the check runs before the scene is loaded.
 Result<void> checkRenderOutput(const RenderOptions& o, const std::string& image) {
     const NamedPath outputs[] = {{image, "-o"}};
     std::vector<NamedPath> inputs = {{o.scene, "the scene"}, {o.volumes, "the volume"}};

@@ -51,11 +51,16 @@ int32_t textureSlot(const baker::Scene& scene, const baker::Material& material,
     return slot;
 }
 
+// A config holding only the section `key` = `value`, parsed as `probekit bake` parses a config.
+Result<baker::BakeConfig> sectionConfig(const std::string& key, const nlohmann::json& value,
+                                        const std::string& source) {
+    return baker::parseBakeConfig(nlohmann::json{{key, value}}.dump(), source);
+}
+
 // A bake config's "environment" object, parsed as `probekit bake` parses it.
 Result<baker::EnvironmentConfig> parseEnvironment(const nlohmann::json& env,
                                                   const std::string& source) {
-    Result<baker::BakeConfig> config =
-        baker::parseBakeConfig(nlohmann::json{{"environment", env}}.dump(), source);
+    Result<baker::BakeConfig> config = sectionConfig("environment", env, source);
     if (!config) {
         return config.error();
     }
@@ -79,8 +84,7 @@ recordedSection(const BakeMetadata& metadata, const std::string& key, const std:
     if (!recorded.value().is_object() || !recorded.value().contains(key)) {
         return std::optional<baker::BakeConfig>();
     }
-    const nlohmann::json section = {{key, recorded.value()[key]}};
-    Result<baker::BakeConfig> config = baker::parseBakeConfig(section.dump(), source);
+    Result<baker::BakeConfig> config = sectionConfig(key, recorded.value()[key], source);
     if (!config) {
         return config.error();
     }
