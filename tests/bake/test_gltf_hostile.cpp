@@ -400,25 +400,35 @@ TEST(GltfHostile, TheSceneItselfIsChargedAsItGrows) {
     // 1048576 x (12 world position + 4 remap) bytes + 1048576 / 8 + 1 finite flags + 349525 x 12
     // corners while the instance loads, and 1048576 x (12 + 8 + 12) + 349525 x (12 + 4 + 4)
     // bytes of Scene arrays for the first instance.
-    // One instance: its scene arrays (40544932 bytes) pass the up-front sum at 64 MiB, the
-    // primitive's work arrays on top of them do not.
+    // One instance: its scene arrays (40544932 bytes) pass the up-front sum at 64 MiB and are
+    // reserved; the primitive's work arrays (21102589 bytes) on top of them do not fit.
     const fs::path one = sparseInstances(dir, "one_instance.gltf", 1 << 20, 1);
     LoadOptions options;
     options.maxMemoryBytes = 64ull << 20;
     EXPECT_TRUE(contains(loadError(one, options),
                          at(one, "meshes[0].primitives[0] (1048576 vertices, 349525 triangles, "
-                                 "expanded and added to the scene) needs 61647521 bytes; with ")))
+                                 "expanded and added to the scene) needs 21102589 bytes; with ")))
         << loadError(one, options);
-    // Five instances (202724660 bytes up front) pass the sum at 256 MiB; the scene's arrays,
-    // charged as they grow (capacity doubling included), stop a later instance.
-    const fs::path file = sparseInstances(dir, "instances.gltf", 1 << 20, 5);
+    // Five instances (202724660 bytes up front) pass the sum at 256 MiB. The arrays are
+    // reserved at that sum before the first instance, so they hold exactly it when the scene
+    // is loaded: grown instance by instance, they doubled past it and a later instance was
+    // refused (the up-front check missed the growth).
+    const fs::path five = sparseInstances(dir, "instances.gltf", 1 << 20, 5);
     options.maxMemoryBytes = 256ull << 20;
-    const std::string message = loadError(file, options);
-    const size_t with = message.find("bytes; with ");
-    ASSERT_NE(with, std::string::npos) << message;
-    const uint64_t loaded = std::stoull(message.substr(with + 12));
-    EXPECT_GT(loaded, 2u * 40544932u) << message;
-    EXPECT_LE(loaded, 256ull << 20) << message;
+    const Result<Scene> loaded = loadGltf(five, options);
+    ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+    const Scene& s = loaded.value();
+    const auto held = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+    EXPECT_EQ(held(s.positions) + held(s.uvs) + held(s.normals) + held(s.triangles) +
+                  held(s.triangleMaterial) + held(s.triangleNode),
+              5u * 40544932u);
+    // Seven (283814524 bytes) are refused by the sum, before any instance is built.
+    const fs::path seven = sparseInstances(dir, "seven.gltf", 1 << 20, 7);
+    EXPECT_TRUE(contains(loadError(seven, options),
+                         at(seven, "adding every mesh instance to the scene (7340032 vertices and "
+                                   "2446675 triangles; the most from meshes[0], used by 7 nodes) "
+                                   "needs 283814524 bytes; with ")))
+        << loadError(seven, options);
 
     // sceneBytes counts the arrays' storage: the quad's primitive reserves its 4 vertices and
     // 1 triangle; one material, one node.
@@ -603,6 +613,25 @@ TEST(GltfHostile, EachKindOfGlbDamageNamesItsByteOffset) {
     const std::vector<uint8_t> bytes = glbBytes(good);
     writeBytes(dir / "good.glb", bytes.data(), bytes.size());
     EXPECT_TRUE(loadGltf(dir / "good.glb").ok()) << loadError(dir / "good.glb");
+}
+
+TEST(GltfHostile, OnlyTheFirstBufferOfAGlbIsItsBinChunk) {
+    TempDir dir;
+    // A second buffer without a uri, its view read by the accessor: before, tinygltf handed it
+    // the BIN chunk and the quad loaded from bytes the file never gave that buffer.
+    GlbParts parts = quadGlb();
+    json doc = json::parse(parts.json);
+    doc["buffers"].push_back({{"byteLength", parts.bin.size()}});
+    doc["bufferViews"][0]["buffer"] = 1;
+    parts.json = doc.dump();
+    while (parts.json.size() % 4 != 0) {
+        parts.json += ' ';
+    }
+    const std::vector<uint8_t> bytes = glbBytes(parts);
+    const fs::path file = dir / "second.glb";
+    writeBytes(file, bytes.data(), bytes.size());
+    EXPECT_EQ(loadError(file), at(file, "buffers[1] has no uri (in a GLB only buffers[0], the BIN "
+                                        "chunk, may leave it out)"));
 }
 
 TEST(GltfHostile, DracoIsNamedAsAnUnsupportedRequiredExtension) {

@@ -199,6 +199,37 @@ TEST(UnitScale, LoadingInCentimetresScalesLengthsNotLight) {
     EXPECT_TRUE(implausibleSizeWarning(s, "wall.gltf").empty());
 }
 
+TEST(UnitScale, AScaleThatShrinksTheSceneUnderACentimetreIsRefused) {
+    const auto dir = test::tempDir("unit_scale_small");
+    const std::filesystem::path box = dir / "box.gltf";
+    ASSERT_TRUE(writeGeneratedScene("cornell", box).ok());
+    // The 0.5592 m box at 0.01 m per unit is 5.6 mm across: refused, naming the scale and the
+    // size the file has at 1 m per unit (before, it baked 16% to 99% wrong with exit 0).
+    LoadOptions tiny;
+    tiny.scale = 0.01f;
+    const Result<Scene> refused = loadGltf(box, tiny);
+    ASSERT_FALSE(refused.ok());
+    EXPECT_EQ(refused.error().message,
+              box.string() + ": the scene is 0.005592 m across at 0.01 m per unit (--scale, or "
+                             "scale in the config), less than 0.01 m, too small to bake (the "
+                             "tracer's offsets and the bake's distances are lengths in metres): "
+                             "at 1 m per unit it is 0.5592 m across");
+    // 0.02 m per unit makes it 1.1 cm: loaded.
+    LoadOptions small;
+    small.scale = 0.02f;
+    EXPECT_TRUE(loadGltf(box, small).ok());
+    // A file whose own size is under 1 cm (a kilometre export) is refused with the scale that
+    // fixes it.
+    Scene km = test::loadOrFail(box);
+    applyUnitScale(km, 1e-3f);
+    const Result<void> km_refused = checkSceneSize(km, "km.gltf", 1.0f);
+    ASSERT_FALSE(km_refused.ok());
+    EXPECT_EQ(km_refused.error().message,
+              "km.gltf: the scene is 0.0005592 m across, less than 0.01 m, too small to bake (the "
+              "tracer's offsets and the bake's distances are lengths in metres): if the file is "
+              "in kilometres, --scale 1000 makes it 0.5592 m");
+}
+
 TEST(UnitScale, AnImplausibleSizeWarnsAndNamesTheScales) {
     const auto dir = test::tempDir("unit_scale_warn");
     ASSERT_TRUE(writeGeneratedScene("cornell", dir / "box.gltf").ok());

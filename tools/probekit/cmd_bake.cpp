@@ -226,14 +226,10 @@ Result<baker::Scene> loadScene(const BakeOptionsCli& o, const baker::BakeConfig&
     if (!scene) {
         return scene;
     }
-    Result<baker::Environment> environment =
-        baker::makeEnvironment(config.environment, config.maxMemoryBytes);
+    // Said where the map was named: the flag, or the config file and its field.
+    Result<baker::Environment> environment = configEnvironment(config, o.config, o.env.has_value());
     if (!environment) {
-        // Said where the map was named: the flag, or the config file and its field.
-        const std::string where = o.env              ? std::string("--env")
-                                  : o.config.empty() ? std::string("environment.file")
-                                                     : o.config + ": environment.file";
-        return makeError(environment.error().code, where + ": " + environment.error().message);
+        return environment.error();
     }
     scene.value().environment = std::move(environment).value();
     if (!o.quiet) {

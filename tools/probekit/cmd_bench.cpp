@@ -400,11 +400,13 @@ struct BenchScene {
 Result<BenchScene> loadBenchScene(const BenchOptions& o, const baker::BakeConfig& base) {
     baker::LoadOptions load_options;
     load_options.sceneIndex = o.sceneIndex;
+    load_options.scale = base.scale;
+    load_options.maxMemoryBytes = base.maxMemoryBytes;
     Result<baker::Scene> scene = baker::loadGltf(o.scene, load_options);
     if (!scene) {
         return scene.error();
     }
-    Result<baker::Environment> env = baker::makeEnvironment(base.environment, base.maxMemoryBytes);
+    Result<baker::Environment> env = configEnvironment(base, o.config);
     if (!env) {
         return env.error();
     }

@@ -211,11 +211,12 @@ Result<baker::BakeConfig> noiseBaseConfig(const BenchNoiseOptions& o) {
 Result<baker::Scene> loadNoiseScene(const BenchNoiseOptions& o, const baker::BakeConfig& base) {
     baker::LoadOptions load_options;
     load_options.scale = base.scale;
+    load_options.maxMemoryBytes = base.maxMemoryBytes;
     Result<baker::Scene> scene = baker::loadGltf(o.scene, load_options);
     if (!scene) {
         return scene;
     }
-    Result<baker::Environment> env = baker::makeEnvironment(base.environment, base.maxMemoryBytes);
+    Result<baker::Environment> env = configEnvironment(base, o.config);
     if (!env) {
         return env.error();
     }

@@ -777,6 +777,13 @@ private:
                 fail(ErrorCode::InvalidArgument,
                      path + " has no uri (only a GLB's buffer may leave it out)");
             }
+            // The BIN chunk is buffers[0]'s alone (glTF 2.0, GLB stored buffer): a later buffer
+            // without a uri would silently alias it.
+            if (index != 0) {
+                fail(ErrorCode::InvalidArgument,
+                     path + " has no uri (in a GLB only buffers[0], the BIN chunk, may leave it "
+                            "out)");
+            }
             if (m_glb->bin.empty()) {
                 fail(ErrorCode::InvalidArgument, path + " has no uri and the GLB has no BIN chunk");
             }

@@ -192,6 +192,9 @@ Result<Scene> loadGltfBytes(std::span<const uint8_t> bytes, const std::filesyste
         if (scene) {
             scene.value().files = std::move(read);
             applyUnitScale(scene.value(), options.scale);
+            if (Result<void> size = checkSceneSize(scene.value(), file, options.scale); !size) {
+                return size.error();
+            }
             if (std::string w = implausibleSizeWarning(scene.value(), file); !w.empty()) {
                 scene.value().warnings.push_back(std::move(w));
             }

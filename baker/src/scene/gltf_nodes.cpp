@@ -206,6 +206,23 @@ std::vector<int> GltfLoader::traverse(const std::vector<int>& roots) {
     return reachable;
 }
 
+namespace {
+
+// How many of the reachable nodes use each mesh (an index out of range is left to loadNode).
+std::vector<uint64_t> meshInstances(const tinygltf::Model& model,
+                                    const std::vector<int>& reachable) {
+    std::vector<uint64_t> instances(model.meshes.size(), 0);
+    for (const int node_index : reachable) {
+        const int mesh = model.nodes[static_cast<size_t>(node_index)].mesh;
+        if (mesh >= 0 && static_cast<size_t>(mesh) < instances.size()) {
+            ++instances[static_cast<size_t>(mesh)];
+        }
+    }
+    return instances;
+}
+
+} // namespace
+
 // Every node that uses a mesh adds a transformed copy of its triangles to the scene, so a
 // small file can name one large (or sparse, zero-backed) accessor from many nodes. The
 // per-primitive checks in loadPrimitive catch that only once the first copies exist (a 1.3
@@ -214,7 +231,8 @@ std::vector<int> GltfLoader::traverse(const std::vector<int>& roots) {
 // counts alone, and refuses before the first is built. It is a lower bound of what loading
 // charges (the per-primitive work arrays come on top), so it never refuses a scene the
 // per-primitive checks would take; malformed accessors and meshes are left to those checks,
-// which name the precise field.
+// which name the precise field. What it admits is reserved at once (below), so the arrays
+// never grow past it.
 void GltfLoader::checkInstancedGrowth(const std::vector<int>& reachable) {
     constexpr uint64_t kVertexBytes = sizeof(glm::vec3) + sizeof(glm::vec2) + sizeof(glm::vec3);
     constexpr uint64_t kTriangleBytes = sizeof(glm::uvec3) + sizeof(uint32_t) + sizeof(int32_t);
@@ -238,13 +256,7 @@ void GltfLoader::checkInstancedGrowth(const std::vector<int>& reachable) {
             m_model.bufferViews[static_cast<size_t>(accessor.bufferView)].byteLength;
         return element > 0 && accessor.count <= view / element ? accessor.count : 0;
     };
-    std::vector<uint64_t> instances(m_model.meshes.size(), 0);
-    for (const int node_index : reachable) {
-        const int mesh = m_model.nodes[static_cast<size_t>(node_index)].mesh;
-        if (mesh >= 0 && static_cast<size_t>(mesh) < instances.size()) {
-            ++instances[static_cast<size_t>(mesh)];
-        }
-    }
+    const std::vector<uint64_t> instances = meshInstances(m_model, reachable);
     // Counts x instances can pass 2^64 in a forged file: sum in long double, print clamped.
     long double total = 0.0L;
     long double vertices = 0.0L;
@@ -290,6 +302,11 @@ void GltfLoader::checkInstancedGrowth(const std::vector<int>& reachable) {
                                   (instances[largest] == 1 ? " node)" : " nodes)"),
                               bytes));
     }
+    // The arrays are reserved once, at the size just charged: grown instance by instance
+    // they would double past it (and hold old and new storage while they move), so a scene
+    // the sum admits could still be refused gigabytes later. The per-primitive growth then
+    // finds the room already there.
+    growScene(clamped(vertices), clamped(triangles));
 }
 
 void GltfLoader::loadNode(int node_index) {

@@ -212,34 +212,62 @@ std::string implausibleSizeWarning(const Scene& scene, const std::string& file) 
     }
     const glm::vec3 size = scene.bounds.size();
     const float longest = std::max({size.x, size.y, size.z});
-    if (longest >= kPlausibleSceneMinMetres && longest <= kPlausibleSceneMaxMetres) {
+    // Under kPlausibleSceneMinMetres the load is refused (checkSceneSize), so only the large
+    // side is left to question here.
+    if (longest <= kPlausibleSceneMaxMetres) {
         return {};
     }
+    const float storey = storeyHeight(scene);
+    if (plausibleStorey(storey)) {
+        return {};
+    }
+    char storeys[128] = "too few of its floors have a ceiling to measure its storeys";
+    if (storey > 0.0f) {
+        std::snprintf(storeys, sizeof storeys,
+                      "its storeys are %.3g m high (median floor to ceiling; %g to %g m is "
+                      "plausible)",
+                      storey, kPlausibleStoreyMinMetres, kPlausibleStoreyMaxMetres);
+    }
     char text[768];
-    if (longest > kPlausibleSceneMaxMetres) {
-        const float storey = storeyHeight(scene);
-        if (plausibleStorey(storey)) {
-            return {};
-        }
-        char storeys[128] = "too few of its floors have a ceiling to measure its storeys";
-        if (storey > 0.0f) {
-            std::snprintf(storeys, sizeof storeys,
-                          "its storeys are %.3g m high (median floor to ceiling; %g to %g m is "
-                          "plausible)",
-                          storey, kPlausibleStoreyMinMetres, kPlausibleStoreyMaxMetres);
-        }
+    std::snprintf(text, sizeof text,
+                  "%s: the scene is %.4g m across (%.4g x %.4g x %.4g m), more than %g m, and "
+                  "%s: %s (glTF says metres; exporters often write other units)",
+                  file.c_str(), longest, size.x, size.y, size.z, kPlausibleSceneMaxMetres, storeys,
+                  scaleSuggestions(longest, storey).c_str());
+    return text;
+}
+
+// Measured on the Cornell box (2 units) baked at smaller and smaller scales against its bake
+// at 1 m per unit, which lighting by an emitter leaves unchanged in exact arithmetic: relative
+// RMS 0.5% at 20 cm, 5.4% at 2 cm, 16% at 2 mm, 99% at 20 um. The tracer's origin offsets
+// (ray_tracer.hpp) and the bake's relocation and visibility distances are lengths in metres.
+Result<void> checkSceneSize(const Scene& scene, const std::string& file, float scale) {
+    if (!scene.hasGeometry()) {
+        return {};
+    }
+    const glm::vec3 size = scene.bounds.size();
+    const float longest = std::max({size.x, size.y, size.z});
+    // A scene whose vertices all coincide has no surface to trace at any scale: it bakes as an
+    // empty scene would, so there is nothing a unit can mend.
+    if (longest >= kPlausibleSceneMinMetres || longest == 0.0f) {
+        return {};
+    }
+    char text[512];
+    if (scale != 1.0f) {
         std::snprintf(text, sizeof text,
-                      "%s: the scene is %.4g m across (%.4g x %.4g x %.4g m), more than %g m, and "
-                      "%s: %s (glTF says metres; exporters often write other units)",
-                      file.c_str(), longest, size.x, size.y, size.z, kPlausibleSceneMaxMetres,
-                      storeys, scaleSuggestions(longest, storey).c_str());
+                      "%s: the scene is %.4g m across at %g m per unit (--scale, or scale in "
+                      "the config), less than %g m, too small to bake (the tracer's offsets "
+                      "and the bake's distances are lengths in metres): at 1 m per unit it is "
+                      "%.4g m across",
+                      file.c_str(), longest, scale, kPlausibleSceneMinMetres, longest / scale);
     } else {
         std::snprintf(text, sizeof text,
-                      "%s: the scene is %.4g m across, less than %g m: if the file is in "
-                      "kilometres, --scale 1000 makes it %.4g m",
+                      "%s: the scene is %.4g m across, less than %g m, too small to bake (the "
+                      "tracer's offsets and the bake's distances are lengths in metres): if the "
+                      "file is in kilometres, --scale 1000 makes it %.4g m",
                       file.c_str(), longest, kPlausibleSceneMinMetres, longest * 1000.0f);
     }
-    return text;
+    return makeError(ErrorCode::OutOfRange, text);
 }
 
 } // namespace probekit::baker

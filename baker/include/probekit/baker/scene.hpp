@@ -149,9 +149,10 @@ struct LoadOptions {
 // kPlausibleSceneMinMetres..kPlausibleSceneMaxMetres, or when its storey height (the median
 // distance from its floors straight up to the next surface: storeyHeight, scene.cpp) is within
 // kPlausibleStoreyMinMetres..kPlausibleStoreyMaxMetres, whatever its extent; loadGltf warns
-// otherwise and names the scales, first those that make its storeys plausible.
+// otherwise and names the scales, first those that make its storeys plausible. Under
+// kPlausibleSceneMinMetres it refuses the scene (checkSceneSize).
 constexpr float kPlausibleSceneMaxMetres = 100.0f; // a large building; more is a cm/mm export
-constexpr float kPlausibleSceneMinMetres = 0.01f;  // a coin; less is an export in kilometres
+constexpr float kPlausibleSceneMinMetres = 0.01f;  // a coin; less bakes wrong
 constexpr float kPlausibleStoreyMinMetres = 2.0f;  // a low room or a door
 constexpr float kPlausibleStoreyMaxMetres = 6.0f;  // a hall's storey
 
@@ -159,10 +160,17 @@ constexpr float kPlausibleStoreyMaxMetres = 6.0f;  // a hall's storey
 void applyUnitScale(Scene& scene, float scale);
 
 // The warning loadGltf gives for a scene whose size is implausible in metres (empty when it is
-// plausible by the rule above, or it has no geometry), naming the --scale values that would
-// make it plausible: 0.01, 0.0254 and 0.001 over 100 m (those that make its storeys 2..6 m
-// first, each with the size and storey height it gives), 1000 under 1 cm.
+// plausible by the rule above, or it has no geometry, or it is under 1 cm, which
+// checkSceneSize refuses), naming the --scale values that would make it plausible: 0.01,
+// 0.0254 and 0.001 over 100 m (those that make its storeys 2..6 m first, each with the size and
+// storey height it gives).
 std::string implausibleSizeWarning(const Scene& scene, const std::string& file);
+
+// Refuses a scene with geometry whose longest side, after the scale (`scale`, metres per unit,
+// named in the message), is under kPlausibleSceneMinMetres: the bake's lengths are in metres
+// and such a scene bakes wrong (scene.cpp has the figures). The message gives the size at 1 m
+// per unit, or the scale that makes a file in kilometres plausible.
+Result<void> checkSceneSize(const Scene& scene, const std::string& file, float scale);
 
 // Loads a .gltf or .glb (embedded or external buffers and images), glTF 2.x only. Triangle
 // primitives of every index type and non-indexed ones are loaded; points and lines are skipped
