@@ -235,6 +235,13 @@ std::vector<glm::uvec3> regionPoints(const Brick& b, uint32_t max_level, uint32_
     return out;
 }
 
+// True when every probe of the brick is inside geometry (invalid before dilation).
+bool insideGeometry(const Lattice& lattice, const Brick& b, uint32_t max_level) {
+    const auto own = regionPoints(b, max_level, 1);
+    return std::none_of(own.begin(), own.end(),
+                        [&](const glm::uvec3& u) { return lattice.valid(u); });
+}
+
 // Mean over the six axis normals and the three channels of (E_a(n) - E_b(n))^2.
 double squaredDifference(const sh::ShRgb& a, const sh::ShRgb& b, sh::Order order) {
     return squaredAxisIrradianceDifference(a, b, order) / 18.0;
@@ -683,9 +690,7 @@ Candidates chooseCandidates(BrickedBake& b, DirectField& direct, const std::vect
     std::vector<Eligible> eligible;
     for (int i : frontier) {
         Node& n = b.nodes[size_t(i)];
-        const auto own = regionPoints(n.brick, b.maxLevel, 1);
-        if (std::none_of(own.begin(), own.end(),
-                         [&](const glm::uvec3& u) { return b.lattice.valid(u); })) {
+        if (insideGeometry(b.lattice, n.brick, b.maxLevel)) {
             continue; // inside geometry: never spent on
         }
         const Disagreement from_direct = direct.disagreement(n.brick, b.maxLevel, b.scale);
@@ -921,6 +926,7 @@ std::vector<uint64_t> layOutBricks(BrickedBake& b, const std::vector<int>& store
         const Brick& brick = b.nodes[size_t(i)].brick;
         b.out.desc.bricks.bricks.push_back(brick);
         ++b.out.bricksPerLevel[brick.level];
+        b.out.solidBricksPerLevel[brick.level] += insideGeometry(b.lattice, brick, b.maxLevel);
         for (const glm::uvec3& u : regionPoints(brick, b.maxLevel, 1)) {
             used_keys.push_back(b.lattice.key(u));
         }

@@ -67,6 +67,9 @@ struct BrickedOutcome {
     double predictedError = 0.0; // RMS interpolation error, fraction of RMS irradiance
     uint64_t invalidProbes = 0;  // lattice points inside geometry among those written
     uint64_t nudgedProbes = 0;   // box-face lattice points baked just inside the box
+    // Stored bricks whose every probe is inside geometry (invalid before dilation), by level:
+    // they hold only dilated values.
+    uint64_t solidBricksPerLevel[4] = {0, 0, 0, 0};
     std::vector<std::string> warnings;
 };
 
