@@ -235,7 +235,17 @@ std::vector<glm::uvec3> regionPoints(const Brick& b, uint32_t max_level, uint32_
     return out;
 }
 
-// True when every probe of the brick is inside geometry (invalid before dilation).
+// True when every probe of the brick is inside geometry (invalid before dilation): a brick
+// lying wholly inside a solid. Such a brick holds only values dilated from outside it, so a
+// finer one is never stored ("free-space bricks": the coarser brick shows there, brick.hpp's
+// nesting, and the runtime samples it unchanged). Decided from the probes' validity (the
+// back-face rule, validity.hpp) alone, not a flood fill of the lattice from open space: a flood
+// fill needs a seed in the level's open space, and neither the box faces (outside a sealed
+// level, arena-sealed) nor any lattice point is known to be one without player start points,
+// which the config does not give yet; a sealed pocket inside a block whose probes see front
+// faces therefore still counts as air. Level-0 bricks are all stored, solid or not: the layout
+// must cover the box (buildIndirection), and leaving them out needs an empty indirection entry
+// and a rule for the runtime there, a new .pvol version.
 bool insideGeometry(const Lattice& lattice, const Brick& b, uint32_t max_level) {
     const auto own = regionPoints(b, max_level, 1);
     return std::none_of(own.begin(), own.end(),
@@ -758,6 +768,10 @@ std::vector<int> keepFinerBricks(BrickedBake& b, const Candidates& candidates, u
             Node child;
             child.brick.level = uint8_t(level + 1);
             child.brick.coord = parent.coord * 2u + glm::uvec3(o & 1, (o >> 1) & 1, o >> 2);
+            if (!b.settings.storeSolidBricks &&
+                insideGeometry(b.lattice, child.brick, b.maxLevel)) {
+                continue; // a free-space brick: only dilated values, the parent shows there
+            }
             child.parent = i;
             child.gain = nodes[size_t(i)].octant[o];
             child.predicted = child.gain / decay;
