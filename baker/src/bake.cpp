@@ -792,6 +792,7 @@ BrickedSettings brickedSettings(const BakeRun& run, const VolumeConfig& vc, uint
 void addBrickedOutcome(const BrickedOutcome& b, BakeResult& result) {
     for (int l = 0; l < 4; ++l) {
         result.stats.bricksPerLevel[l] += b.bricksPerLevel[l];
+        result.stats.solidBricksPerLevel[l] += b.solidBricksPerLevel[l];
     }
     result.stats.refineCandidates += b.refineCandidates;
     result.stats.budgetDropped += b.budgetDropped;

@@ -417,6 +417,8 @@ nlohmann::json makeReport(const BakeOptionsCli& o, const baker::BakeConfig& conf
     if (anyBricked(result.file)) {
         report["bricks_per_level"] = {s.bricksPerLevel[0], s.bricksPerLevel[1], s.bricksPerLevel[2],
                                       s.bricksPerLevel[3]};
+        report["solid_bricks_per_level"] = {s.solidBricksPerLevel[0], s.solidBricksPerLevel[1],
+                                            s.solidBricksPerLevel[2], s.solidBricksPerLevel[3]};
         report["refine_candidates"] = s.refineCandidates;
         report["nudged_probes"] = s.nudgedProbes;
         report["budget_dropped"] = s.budgetDropped;
@@ -480,6 +482,10 @@ void printSummary(const BakeOptionsCli& o, const baker::BakeConfig& config,
                     count(s.bricksPerLevel[2]), count(s.bricksPerLevel[3]),
                     count(s.refineCandidates), count(s.nudgedProbes), count(gpuBytes(result.file)),
                     s.predictedInterpolationError);
+        std::printf("  bricks with every probe inside geometry by level %llu / %llu / %llu / "
+                    "%llu\n",
+                    count(s.solidBricksPerLevel[0]), count(s.solidBricksPerLevel[1]),
+                    count(s.solidBricksPerLevel[2]), count(s.solidBricksPerLevel[3]));
         if (s.budgetDropped > 0) {
             std::printf("  max_memory_mb bound: %llu finer bricks dropped, the costliest "
                         "with disagreement %.3g\n",

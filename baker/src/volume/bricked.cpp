@@ -235,6 +235,23 @@ std::vector<glm::uvec3> regionPoints(const Brick& b, uint32_t max_level, uint32_
     return out;
 }
 
+// True when every probe of the brick is inside geometry (invalid before dilation): a brick
+// lying wholly inside a solid. Such a brick holds only values dilated from outside it, so a
+// finer one is never stored ("free-space bricks": the coarser brick shows there, brick.hpp's
+// nesting, and the runtime samples it unchanged). Decided from the probes' validity (the
+// back-face rule, validity.hpp) alone, not a flood fill of the lattice from open space: a flood
+// fill needs a seed in the level's open space, and neither the box faces (outside a sealed
+// level, arena-sealed) nor any lattice point is known to be one without player start points,
+// which the config does not give yet; a sealed pocket inside a block whose probes see front
+// faces therefore still counts as air. Level-0 bricks are all stored, solid or not: the layout
+// must cover the box (buildIndirection), and leaving them out needs an empty indirection entry
+// and a rule for the runtime there, a new .pvol version.
+bool insideGeometry(const Lattice& lattice, const Brick& b, uint32_t max_level) {
+    const auto own = regionPoints(b, max_level, 1);
+    return std::none_of(own.begin(), own.end(),
+                        [&](const glm::uvec3& u) { return lattice.valid(u); });
+}
+
 // Mean over the six axis normals and the three channels of (E_a(n) - E_b(n))^2.
 double squaredDifference(const sh::ShRgb& a, const sh::ShRgb& b, sh::Order order) {
     return squaredAxisIrradianceDifference(a, b, order) / 18.0;
@@ -683,9 +700,7 @@ Candidates chooseCandidates(BrickedBake& b, DirectField& direct, const std::vect
     std::vector<Eligible> eligible;
     for (int i : frontier) {
         Node& n = b.nodes[size_t(i)];
-        const auto own = regionPoints(n.brick, b.maxLevel, 1);
-        if (std::none_of(own.begin(), own.end(),
-                         [&](const glm::uvec3& u) { return b.lattice.valid(u); })) {
+        if (insideGeometry(b.lattice, n.brick, b.maxLevel)) {
             continue; // inside geometry: never spent on
         }
         const Disagreement from_direct = direct.disagreement(n.brick, b.maxLevel, b.scale);
@@ -753,6 +768,10 @@ std::vector<int> keepFinerBricks(BrickedBake& b, const Candidates& candidates, u
             Node child;
             child.brick.level = uint8_t(level + 1);
             child.brick.coord = parent.coord * 2u + glm::uvec3(o & 1, (o >> 1) & 1, o >> 2);
+            if (!b.settings.storeSolidBricks &&
+                insideGeometry(b.lattice, child.brick, b.maxLevel)) {
+                continue; // a free-space brick: only dilated values, the parent shows there
+            }
             child.parent = i;
             child.gain = nodes[size_t(i)].octant[o];
             child.predicted = child.gain / decay;
@@ -921,6 +940,7 @@ std::vector<uint64_t> layOutBricks(BrickedBake& b, const std::vector<int>& store
         const Brick& brick = b.nodes[size_t(i)].brick;
         b.out.desc.bricks.bricks.push_back(brick);
         ++b.out.bricksPerLevel[brick.level];
+        b.out.solidBricksPerLevel[brick.level] += insideGeometry(b.lattice, brick, b.maxLevel);
         for (const glm::uvec3& u : regionPoints(brick, b.maxLevel, 1)) {
             used_keys.push_back(b.lattice.key(u));
         }

@@ -49,6 +49,10 @@ struct BrickedSettings {
     // visibility, visibility.hpp); null = none of them.
     const RayTracer* tracer = nullptr;
     uint32_t threads = 1; // for the visibility tracing and deringing
+    // Also store finer bricks whose probes are all inside geometry, as bakes did before
+    // free-space bricks (bricked.cpp's insideGeometry): only for comparing the two layouts; the
+    // bake never sets it.
+    bool storeSolidBricks = false;
 };
 
 struct BrickedOutcome {
@@ -67,6 +71,9 @@ struct BrickedOutcome {
     double predictedError = 0.0; // RMS interpolation error, fraction of RMS irradiance
     uint64_t invalidProbes = 0;  // lattice points inside geometry among those written
     uint64_t nudgedProbes = 0;   // box-face lattice points baked just inside the box
+    // Stored bricks whose every probe is inside geometry (invalid before dilation), by level:
+    // they hold only dilated values.
+    uint64_t solidBricksPerLevel[4] = {0, 0, 0, 0};
     std::vector<std::string> warnings;
 };
 
@@ -90,8 +97,10 @@ struct BrickedOutcome {
 //  * a brick whose prediction exceeds t_l, and that has a probe outside geometry (bricks inside
 //    solids are never spent on), bakes its finer probes for real; the finer brick of each
 //    octant where the larger of the measured disagreement and (a) exceeds t_l is kept (bricks
-//    nest: brick.hpp). The other octants' finer probes stay unused (their bake time is part of
-//    the bake).
+//    nest: brick.hpp), unless every one of its probes is inside geometry (a free-space brick:
+//    the coarser brick shows there; (a) sees the direct light drop to 0 inside a solid next to
+//    lit probes and would otherwise keep it). The other octants' finer probes stay unused
+//    (their bake time is part of the bake).
 // The budget then drops the finer bricks whose removal costs least (volume x squared
 // disagreement of their octant), a brick only after its own finer bricks, until the GPU bytes
 // fit.

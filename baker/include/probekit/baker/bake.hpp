@@ -146,7 +146,10 @@ struct BakeStats {
     uint64_t probesOverTarget = 0;
     // Bricked volumes (summed over them):
     uint64_t bricksPerLevel[4] = {0, 0, 0, 0}; // bricks written, by level
-    uint64_t nudgedProbes = 0;                 // box-face probes baked just inside the box
+    // Bricks written whose every probe is inside geometry (invalid), by level: they hold only
+    // values dilated from outside.
+    uint64_t solidBricksPerLevel[4] = {0, 0, 0, 0};
+    uint64_t nudgedProbes = 0;     // box-face probes baked just inside the box
     uint64_t relocatedProbes = 0;  // probes inside geometry baked at the nearest free point
     uint64_t refineCandidates = 0; // bricks whose finer probes were baked to test them
     uint64_t budgetDropped = 0;    // finer bricks removed by max_memory_mb
