@@ -634,6 +634,41 @@ TEST(GltfHostile, OnlyTheFirstBufferOfAGlbIsItsBinChunk) {
                                         "chunk, may leave it out)"));
 }
 
+TEST(GltfHostile, AKeyGivenTwiceInOneObjectIsRefusedWithItsPath) {
+    TempDir dir;
+    const fs::path good = quadFile(dir, "good.gltf");
+    ASSERT_TRUE(loadGltf(good).ok()) << loadError(good);
+    const std::string text = readText(good);
+    // Writes `text` with `insert` put just after the first `key` it holds.
+    const auto repeated = [&](const std::string& name, const std::string& key,
+                              const std::string& insert) {
+        std::string edited = text;
+        const size_t at_key = edited.find(key);
+        EXPECT_NE(at_key, std::string::npos) << key;
+        edited.insert(at_key + key.size(), insert);
+        const fs::path file = dir / name;
+        writeText(file, edited);
+        return file;
+    };
+    // An empty array first and the real one after: readers that keep the last would load the
+    // quad, readers that keep the first an empty scene. The file is refused either way.
+    const fs::path views = repeated("views.gltf", "{", "\"bufferViews\": [],");
+    EXPECT_EQ(loadError(views), at(views, "bufferViews: given twice (glTF 2.0 forbids a key "
+                                          "repeated in one object; readers would keep only "
+                                          "the last)"));
+    // Inside an array element, the path names the element.
+    const fs::path node =
+        repeated("node.gltf", "\"nodes\"", ": [{\"mesh\": 0, \"mesh\": 0}], \"x\"");
+    const std::string message = loadError(node);
+    EXPECT_NE(message.find("nodes[0].mesh: given twice"), std::string::npos) << message;
+    // The same key in two different objects is not a repeat.
+    const fs::path names = quadFile(dir, "names.gltf", [](json& d) {
+        d["nodes"][0]["name"] = "quad";
+        d["meshes"][0]["name"] = "quad";
+    });
+    EXPECT_TRUE(loadGltf(names).ok()) << loadError(names);
+}
+
 TEST(GltfHostile, DracoIsNamedAsAnUnsupportedRequiredExtension) {
     TempDir dir;
     // Draco files carry accessors without bufferViews (the data is in the extension).

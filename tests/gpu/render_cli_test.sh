@@ -40,7 +40,7 @@ expect 0 "probes: drew [0-9]+ of 64 .*budget 12," -- "$pk" render cornell.gltf v
     --size 32,24 --view probes --camera-from +x
 expect 1 "--env.*radiance" -- "$pk" render cornell.gltf volume.pvol -o bad.png --env -1,0,0
 check "no output from a bad --env" test ! -e bad.png
-expect 1 "missing.hdr" -- "$pk" render cornell.gltf volume.pvol -o bad.png --env missing.hdr
+expect 1 "--env: missing.hdr" -- "$pk" render cornell.gltf volume.pvol -o bad.png --env missing.hdr
 # Issue 31: a .pvol is untrusted. Nested past the JSON depth limit it is refused naming the file
 # and the field; the environment file it records is opened only under the scene's folder or
 # the .pvol's: outside, the render warns, opens nothing and draws the black background.

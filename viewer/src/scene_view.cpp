@@ -192,7 +192,12 @@ Result<Environment> environmentFromSpec(const std::string& spec, const std::stri
     if (!config) {
         return config.error();
     }
-    return baker::makeEnvironment(config.value());
+    Result<Environment> loaded = baker::makeEnvironment(config.value());
+    if (!loaded) {
+        // The map's own error names its file; the prefix says which flag gave it.
+        return makeError(loaded.error().code, source + ": " + loaded.error().message);
+    }
+    return loaded;
 }
 
 Result<Environment> recordedEnvironment(const BakeMetadata& metadata, const std::string& source,

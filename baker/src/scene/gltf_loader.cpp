@@ -17,6 +17,7 @@
 #include <utility>
 
 #include "probekit/baker/scene.hpp"
+#include "probekit/formats/json_nesting.hpp"
 #include "probekit/formats/pvol.hpp"
 #include "scene/gltf_input.hpp"
 #include "scene/gltf_loader.hpp"
@@ -105,12 +106,26 @@ checkJsonDocument(std::span<const uint8_t> text, uint64_t text_offset, const std
                                document_bytes)};
     }
     budget.add(document_bytes);
+    // glTF 2.0 forbids a key given twice in one object (KhronosGroup/glTF#846); nlohmann and
+    // tinygltf keep the last without a word, so an exporter's repeated "bufferViews" would drop
+    // the first array's views and bake a different scene. The parse watches for them.
+    detail::DuplicateKeyFinder<nlohmann::json> duplicates;
     nlohmann::json document;
     try {
-        document = nlohmann::json::parse(text.begin(), text.end());
+        document = nlohmann::json::parse(
+            text.begin(), text.end(),
+            [&duplicates](int depth, nlohmann::json::parse_event_t event, nlohmann::json& value) {
+                return duplicates(depth, event, value);
+            });
     } catch (const nlohmann::json::exception& e) {
         throw LoadError{ErrorCode::InvalidArgument,
                         file + ": not valid JSON: " + std::string(e.what())};
+    }
+    if (!duplicates.firstRepeated().empty()) {
+        throw LoadError{ErrorCode::InvalidArgument,
+                        file + ": " + duplicates.firstRepeated() +
+                            ": given twice (glTF 2.0 forbids a key repeated in one object; "
+                            "readers would keep only the last)"};
     }
     gltf::checkDocument(document, file, glb, folder, budget);
     return {gltf::fileUriPaths(document), gltf::imagePlan(document)};
