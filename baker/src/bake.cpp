@@ -156,6 +156,13 @@ uint64_t peakResidentBytes() {
 
 } // namespace
 
+float automaticDensity(const grid::Aabb& box, VolumeLayout layout) {
+    const glm::vec3 extent = box.size();
+    const float longest = std::max({extent.x, extent.y, extent.z});
+    const float base = layout == VolumeLayout::Bricked ? kBrickedDensity : kDefaultDensity;
+    return std::max(base, longest > 0.0f ? kMinAutoProbes / longest : 0.0f);
+}
+
 glm::vec3 probeSpacing(const VolumeDesc& desc) {
     if (desc.layout == VolumeLayout::Bricked) {
         const glm::uvec3 cells = brick::finestCells(desc.grid.resolution(), desc.bricks.maxLevel);
@@ -290,6 +297,12 @@ std::string resolutionNote(const std::string& label, float density, glm::vec3 si
     return text;
 }
 
+// The probe budget of an automatic resolution: max_probes, or its default for the layout.
+uint32_t maxProbesOf(const VolumeConfig& v) {
+    return v.maxProbes.value_or(v.layout == VolumeLayout::Bricked ? kDefaultMaxBrickedProbes
+                                                                  : kDefaultMaxProbes);
+}
+
 // Probes (or bricks) per axis of an automatic resolution: size x density rounded to powers of
 // two, each axis capped by max_resolution, then the finest axis halved until the grid holds at
 // most max_probes probes; a note when either cap changed it.
@@ -314,7 +327,7 @@ glm::uvec3 automaticResolution(const VolumeConfig& v, const grid::Aabb& box, flo
     const uint64_t per_cell =
         bricked ? uint64_t(brick::kBrickCells) * brick::kBrickCells * brick::kBrickCells : 1u;
     const glm::uvec3 capped = res;
-    while (uint64_t(res.x) * res.y * res.z * per_cell > v.maxProbes) {
+    while (uint64_t(res.x) * res.y * res.z * per_cell > maxProbesOf(v)) {
         int finest = -1;
         for (int a = 0; a < 3; ++a) {
             if (res[a] > floor &&
@@ -328,10 +341,10 @@ glm::uvec3 automaticResolution(const VolumeConfig& v, const grid::Aabb& box, flo
         res[finest] /= 2;
     }
     if (res != capped) {
-        notes.push_back(resolutionNote(
-            label, density, size, asked, res, bricked,
-            ("the budget of " + std::to_string(v.maxProbes) + " probes (max_probes, --max-probes)")
-                .c_str()));
+        notes.push_back(resolutionNote(label, density, size, asked, res, bricked,
+                                       ("the budget of " + std::to_string(maxProbesOf(v)) +
+                                        " probes (max_probes, --max-probes)")
+                                           .c_str()));
     }
     return res;
 }
@@ -410,12 +423,43 @@ Result<float> volumePadding(const Scene& scene, const BakeConfig& config, const 
     return padding;
 }
 
-// Probes per metre of volume `v` over `box`: its density, or the automatic rule.
+// Probes per metre of volume `v` over `box` (bricked: at level 0): its density, or the
+// automatic rule for its layout.
 float volumeDensity(const VolumeConfig& v, const grid::Aabb& box) {
-    const glm::vec3 extent = box.size();
-    const float longest = std::max({extent.x, extent.y, extent.z});
-    return v.density ? *v.density
-                     : std::max(kDefaultDensity, longest > 0.0f ? kMinAutoProbes / longest : 0.0f);
+    return v.density ? *v.density : automaticDensity(box, v.layout.value_or(VolumeLayout::Dense));
+}
+
+// Volume `v` with its layout decided: an automatic layout is bricked when the resolution is
+// automatic, probes are centred and a dense grid at the volume's density over `box` would hold
+// more than kDefaultMaxProbes probes (config.hpp, VolumeConfig::layout); otherwise dense.
+VolumeConfig withLayout(VolumeConfig v, const grid::Aabb& box, const std::string& label,
+                        std::vector<std::string>& notes) {
+    if (v.layout) {
+        return v;
+    }
+    v.layout = VolumeLayout::Dense;
+    if (v.resolution || v.position == grid::PositionMode::Corner) {
+        return v;
+    }
+    const float density = volumeDensity(v, box);
+    double probes = 1.0;
+    for (int a = 0; a < 3; ++a) {
+        const float n = box.size()[a] * density;
+        probes *= n >= float(1u << 30) ? double(1u << 30) : double(roundToPowerOfTwo(n));
+    }
+    if (probes <= double(kDefaultMaxProbes)) {
+        return v;
+    }
+    v.layout = VolumeLayout::Bricked;
+    char text[320];
+    std::snprintf(text, sizeof text,
+                  "%s: layout auto is bricked: a dense grid at %g probes/m over %.4g x %.4g x "
+                  "%.4g m would need %.4g probes, more than %u; level 0 at %g probes/m, finer "
+                  "near geometry (set layout or --layout to choose)",
+                  label.c_str(), double(density), box.size().x, box.size().y, box.size().z, probes,
+                  kDefaultMaxProbes, double(volumeDensity(v, box)));
+    notes.emplace_back(text);
+    return v;
 }
 
 // The volume's grid over its padded `box` and its description.
@@ -501,7 +545,8 @@ Result<VolumePlan> planVolumes(const Scene& scene, const BakeConfig& config) {
         grid::Aabb box = placed.value().box;
         box.min -= glm::vec3(padding.value());
         box.max += glm::vec3(padding.value());
-        Result<VolumeDesc> desc = placeVolume(v, box, placed.value().frame, label, plan.notes);
+        Result<VolumeDesc> desc = placeVolume(withLayout(v, box, label, plan.notes), box,
+                                              placed.value().frame, label, plan.notes);
         if (!desc) {
             return desc.error();
         }
@@ -1051,6 +1096,7 @@ BakeMetadata bakeMetadata(const BakeRun& run, const VolumePlan& plan, const Meth
     resolved.volumes = volumeConfigs(config);
     for (size_t i = 0; i < resolved.volumes.size(); ++i) {
         resolved.volumes[i].resolution = descs[i].grid.resolution();
+        resolved.volumes[i].layout = descs[i].layout; // an automatic layout as decided
         resolved.volumes[i].bounds.padding = plan.padding[i];
     }
     if (method.vplConfig) {

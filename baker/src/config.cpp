@@ -234,6 +234,11 @@ struct Admits {
             t = "true or false";
             break;
         case Kind::Choice:
+            if (autoValue) { // one of the names, "auto" first
+                std::vector<std::string> all = {"auto"};
+                all.insert(all.end(), names.begin(), names.end());
+                return joinList(all);
+            }
             t = joinList(names);
             break;
         }
@@ -321,7 +326,8 @@ public:
     // `v` checked against `a`: the value to store (a number, bool or string), or null for
     // "auto" when `a` admits it.
     Json check(const Admits& a, const Json& v, const std::string& path) const {
-        if (a.autoValue && v.is_string()) {
+        // "auto" when admitted; any other string is a choice's name or an error.
+        if (a.autoValue && v.is_string() && (a.kind != Kind::Choice || v == "auto")) {
             if (v.get<std::string>() != "auto") {
                 fail(path, "\"" + v.get<std::string>() + "\" is not one of auto");
             }
@@ -337,8 +343,13 @@ public:
                 fail(path, "must be true or false");
             }
             return v;
-        case Kind::Choice:
-            return checkChoice(a.names, v, path);
+        case Kind::Choice: {
+            std::vector<std::string> names = a.names;
+            if (a.autoValue) {
+                names.insert(names.begin(), "auto");
+            }
+            return checkChoice(names, v, path);
+        }
         }
         return v;
     }
@@ -663,7 +674,8 @@ const std::vector<Field<BoundsConfig>>& boundsFields() {
 
 const std::vector<Field<VolumeConfig>>& volumeFields() {
     const auto automatic = [](const VolumeConfig& v) { return !v.resolution; };
-    const auto bricked = [](const VolumeConfig& v) { return v.layout == VolumeLayout::Bricked; };
+    // Bricked settings are shown for an automatic layout too: it may become bricked.
+    const auto bricked = [](const VolumeConfig& v) { return v.layout != VolumeLayout::Dense; };
     static const std::vector<Field<VolumeConfig>> fields = {
         shownWhen(field("density", &VolumeConfig::density, positive(), "probes/m",
                         "automatic resolution: probes per metre", "--density"),
@@ -672,9 +684,9 @@ const std::vector<Field<VolumeConfig>>& volumeFields() {
                         whole(1, grid::kMaxResolution).powersOfTwo(), "",
                         "automatic resolution: cap per axis", "--max-resolution"),
                   {automatic}),
-        shownWhen(field("max_probes", &VolumeConfig::maxProbes, whole(8, 1u << 24), "",
+        shownWhen(field("max_probes", &VolumeConfig::maxProbes, whole(8, 1u << 24).orAuto(), "",
                         "automatic resolution: most probes (bricked: level-0 probes); past it "
-                        "the finest axis is halved",
+                        "the finest axis is halved (auto: 32768 dense, 131072 bricked)",
                         "--max-probes"),
                   {automatic}),
         field("position", &VolumeConfig::position, choiceOf<grid::PositionMode>(), "",
@@ -691,8 +703,10 @@ const std::vector<Field<VolumeConfig>>& volumeFields() {
               "overlapping volumes: the higher priority wins"),
         field("fade_distance", &VolumeConfig::fadeDistance, nonNegative(), "m",
               "blend into lower-priority volumes over this distance inside the bounds"),
-        field("layout", &VolumeConfig::layout, choiceOf<VolumeLayout>(), "",
-              "dense grid or bricked (adaptive)"),
+        field("layout", &VolumeConfig::layout, choiceOf<VolumeLayout>().orAuto(), "",
+              "dense grid or bricked (adaptive; auto: bricked where a dense grid at the "
+              "density would pass 32768 probes)",
+              "--layout"),
         shownWhen(field("levels", &VolumeConfig::maxLevel, whole(0, brick::kMaxLevel), "",
                         "bricked: finer levels over level 0"),
                   {bricked}),

@@ -127,7 +127,8 @@ estimateError(const std::function<glm::vec3(glm::vec3 point, glm::vec3 normal)>&
 namespace {
 
 // Every volume becomes bricked, centre-placed, refinable to the deepest level, its level-0
-// resolution left to the density rule (resolved by the caller).
+// resolution left to the density rule (resolved by the caller) and its budget that of a
+// dense grid (the planner's calibration, kDensityTarget, was measured with both).
 void makeVolumesRefinable(BakeConfig& config) {
     if (config.volumes.empty()) {
         config.volumes.push_back(VolumeConfig{});
@@ -137,7 +138,27 @@ void makeVolumesRefinable(BakeConfig& config) {
         v.position = grid::PositionMode::Center;
         v.maxLevel = brick::kMaxLevel;
         v.resolution.reset(); // level 0 from the density rule
+        v.maxProbes = v.maxProbes.value_or(kDefaultMaxProbes);
     }
+}
+
+// The planner scales level 0 from a dense grid's density rule (kDefaultDensity), not from the
+// coarser default of a bricked volume (kBrickedDensity): each volume without a density gets
+// the dense rule's over the box its first placement found, and is placed again.
+Result<std::vector<VolumeDesc>> placeAtDenseDensity(const Scene& scene, BakeConfig& config) {
+    Result<std::vector<VolumeDesc>> first = resolveVolumes(scene, config);
+    if (!first) {
+        return first;
+    }
+    bool changed = false;
+    for (size_t i = 0; i < config.volumes.size(); ++i) {
+        if (!config.volumes[i].density) {
+            config.volumes[i].density =
+                automaticDensity(first.value()[i].grid.bounds(), VolumeLayout::Dense);
+            changed = true;
+        }
+    }
+    return changed ? resolveVolumes(scene, config) : first;
 }
 
 // Level 0 covers the smooth light, where trilinear error grows with the square of the spacing:
@@ -261,7 +282,7 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
     choice.target = target;
     choice.config = base;
     makeVolumesRefinable(choice.config);
-    Result<std::vector<VolumeDesc>> descs = resolveVolumes(scene, choice.config);
+    Result<std::vector<VolumeDesc>> descs = placeAtDenseDensity(scene, choice.config);
     if (!descs) {
         return descs.error();
     }

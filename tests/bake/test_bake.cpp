@@ -13,6 +13,7 @@
 #include "bake_test_support.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/generators.hpp"
+#include "probekit/formats/brick.hpp"
 #include "probekit/formats/sh.hpp"
 #include "probekit/formats/visibility.hpp"
 #include "probekit/runtime/sampler.hpp"
@@ -185,13 +186,29 @@ TEST(BakeVolumes, AutoResolutionRoundsToPowersOfTwoAndCaps) {
 // A wide, flat level (the arena generator's 65 x 8.5 x 65 m) under the default budget keeps even
 // spacing: 64 x 8 x 64, about 1 m in every direction, the same 32768 probes that a cap of 32 per
 // axis spent on 2.03 x 0.27 x 2.03 m (issue 29, item 1).
-TEST(BakeVolumes, TheProbeBudgetKeepsALevelsSpacingEven) {
+namespace {
+
+// The arena level's bounds (placement needs only bounds and a triangle), and one volume over
+// them without padding.
+Scene arenaBounds() {
     Scene scene;
     scene.bounds = {glm::vec3(-32.5f, -0.5f, -32.5f), glm::vec3(32.5f, 8.0f, 32.5f)};
     scene.triangles.push_back(glm::uvec3(0, 1, 2));
+    return scene;
+}
+BakeConfig oneUnpaddedVolume() {
     BakeConfig c;
     c.volumes.resize(1);
     c.volumes[0].bounds.padding = 0.0f;
+    return c;
+}
+
+} // namespace
+
+TEST(BakeVolumes, TheProbeBudgetKeepsALevelsSpacingEven) {
+    const Scene scene = arenaBounds();
+    BakeConfig c = oneUnpaddedVolume();
+    c.volumes[0].layout = VolumeLayout::Dense; // the automatic layout bricks a level
     Result<VolumePlan> plan = planVolumes(scene, c);
     ASSERT_TRUE(plan.ok()) << plan.error().message;
     EXPECT_EQ(plan.value().volumes[0].grid.resolution(), glm::uvec3(64, 8, 64));
@@ -201,6 +218,52 @@ TEST(BakeVolumes, TheProbeBudgetKeepsALevelsSpacingEven) {
                                          "spacing 1.02 x 1.06 x 1.02 m)"),
               std::string::npos)
         << plan.value().notes[0];
+}
+
+// The automatic layout: a level (a dense grid at 4 probes/m would need 2,097,152 probes, past
+// 32768) becomes bricked with level 0 at 1.5 probes/m, under 1 m everywhere (issue 29, item 1);
+// a room stays dense, and so do volumes whose resolution or corner placement was asked.
+TEST(BakeVolumes, TheAutomaticLayoutBricksALevelAndKeepsARoomDense) {
+    const Scene scene = arenaBounds();
+    const BakeConfig c = oneUnpaddedVolume();
+    Result<VolumePlan> plan = planVolumes(scene, c);
+    ASSERT_TRUE(plan.ok()) << plan.error().message;
+    const VolumeDesc& level = plan.value().volumes[0];
+    EXPECT_EQ(level.layout, VolumeLayout::Bricked);
+    EXPECT_EQ(level.grid.resolution(), glm::uvec3(32, 4, 32)); // 4096 bricks, within 131072 / 27
+    EXPECT_EQ(level.bricks.maxLevel, 2u);
+    const glm::vec3 spacing = // level 0's: 3 probe spacings per brick
+        level.grid.bounds().size() / glm::vec3(level.grid.resolution() * brick::kBrickCells);
+    EXPECT_NEAR(spacing.x, 65.0f / 96.0f, 1e-4f);
+    EXPECT_NEAR(spacing.y, 8.5f / 12.0f, 1e-4f);
+    EXPECT_LT(std::max({spacing.x, spacing.y, spacing.z}), 1.0f);
+    ASSERT_EQ(plan.value().notes.size(), 1u);
+    EXPECT_NE(plan.value().notes[0].find(
+                  "layout auto is bricked: a dense grid at 4 probes/m over 65 x 8.5 x 65 m would "
+                  "need 2.097e+06 probes, more than 32768; level 0 at 1.5 probes/m"),
+              std::string::npos)
+        << plan.value().notes[0];
+
+    // The boundary: at 4 probes/m a cube keeps 32 per axis up to 11.3 m (45.25 rounds to 32).
+    for (const auto& [side, want] :
+         {std::pair{11.0f, VolumeLayout::Dense}, std::pair{12.0f, VolumeLayout::Bricked}}) {
+        Scene cube = scene;
+        cube.bounds = {glm::vec3(0.0f), glm::vec3(side)};
+        Result<VolumePlan> p = planVolumes(cube, c);
+        ASSERT_TRUE(p.ok()) << p.error().message;
+        EXPECT_EQ(p.value().volumes[0].layout, want) << side << " m";
+    }
+
+    // Asked resolutions and corner probes are dense grids' settings: the level stays dense.
+    BakeConfig asked = c;
+    asked.volumes[0].resolution = glm::uvec3(64, 8, 64);
+    BakeConfig corner = c;
+    corner.volumes[0].position = grid::PositionMode::Corner;
+    for (const BakeConfig& config : {asked, corner}) {
+        Result<VolumePlan> p = planVolumes(scene, config);
+        ASSERT_TRUE(p.ok()) << p.error().message;
+        EXPECT_EQ(p.value().volumes[0].layout, VolumeLayout::Dense);
+    }
 }
 
 TEST(BakeVolumes, DefaultDensityGivesSmallScenesAUsefulGrid) {

@@ -1227,6 +1227,17 @@ TEST(BrickedConfig, ParsesLayoutLevelsAndRefineError) {
     EXPECT_EQ(c.value().volumes[0].layout, VolumeLayout::Bricked);
     EXPECT_EQ(c.value().volumes[0].maxLevel, 3u);
     EXPECT_FLOAT_EQ(c.value().volumes[0].refineError, 0.1f);
+    // "auto" (and no layout at all) leave the choice to the placement; a name is still checked.
+    for (const char* text : {R"({"volumes": [{"layout": "auto"}]})", R"({"volumes": [{}]})"}) {
+        Result<BakeConfig> automatic = parseBakeConfig(text, "bake.json");
+        ASSERT_TRUE(automatic.ok()) << automatic.error().message;
+        EXPECT_FALSE(automatic.value().volumes[0].layout.has_value()) << text;
+        EXPECT_NE(describeConfig(automatic.value()).find(R"("layout":"auto")"), std::string::npos);
+    }
+    Result<BakeConfig> bad = parseBakeConfig(R"({"volumes": [{"layout": "tiled"}]})", "bake.json");
+    ASSERT_FALSE(bad.ok());
+    EXPECT_EQ(bad.error().message,
+              "bake.json: volumes[0].layout: \"tiled\" is not one of auto, dense, bricked");
 }
 
 TEST(BrickedConfig, RejectsBadLayoutLevelsRefineErrorAndCornerPosition) {

@@ -452,10 +452,11 @@ TEST(GeneratedArena, ALevelInMetresLoadsWithoutAUnitsAlarmAndGetsAnEvenGrid) {
         EXPECT_EQ(scene.lights.size(), 32u);
         EXPECT_EQ(spots, 4u);
         // Default placement: no padding (the open one is no closed object, the sealed one is
-        // a level seen from its solid space), and about 1 m spacing from the probe budget.
+        // a level seen from its solid space), and bricked with level 0 under 1 m.
         Result<VolumePlan> plan = planVolumes(scene, BakeConfig{});
         ASSERT_TRUE(plan.ok()) << plan.error().message;
         EXPECT_EQ(plan.value().padding[0], 0.0f);
-        EXPECT_EQ(plan.value().volumes[0].grid.resolution(), glm::uvec3(64, 8, 64));
+        EXPECT_EQ(plan.value().volumes[0].layout, VolumeLayout::Bricked);
+        EXPECT_EQ(plan.value().volumes[0].grid.resolution(), glm::uvec3(32, 4, 32));
     }
 }

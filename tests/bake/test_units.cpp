@@ -335,7 +335,8 @@ TEST(ResolutionCap, TheNoteSaysWhatWasAskedAndWhatIsUsed) {
     BakeConfig c;
     c.volumes.push_back(VolumeConfig{});
     c.volumes[0].bounds.padding = 0.0f;
-    c.volumes[0].density = 100.0f; // 1000 probes per axis asked: 1024 after rounding
+    c.volumes[0].density = 100.0f;             // 1000 probes per axis asked: 1024 after rounding
+    c.volumes[0].layout = VolumeLayout::Dense; // the caps of a dense grid
     Result<VolumePlan> plan = planVolumes(cube, c);
     ASSERT_TRUE(plan.ok()) << plan.error().message;
     EXPECT_EQ(plan.value().volumes[0].grid.resolution(), glm::uvec3(32));

@@ -382,7 +382,11 @@ Result<baker::BakeConfig> benchBaseConfig(const BenchOptions& o) {
                                  "tools/bench-bricked.sh)");
         }
     }
+    if (base.volumes.empty()) {
+        base.volumes.emplace_back();
+    }
     for (baker::VolumeConfig& v : base.volumes) {
+        v.layout = VolumeLayout::Dense; // "auto" too: the sweep's grids are dense
         v.storage = Storage::Float32;
         v.shOrder = sh::Order::L2;
     }

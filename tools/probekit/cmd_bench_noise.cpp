@@ -197,7 +197,11 @@ Result<baker::BakeConfig> noiseBaseConfig(const BenchNoiseOptions& o) {
         return makeError(ErrorCode::InvalidArgument,
                          o.config + ": bench-noise measures method path without target_error");
     }
+    if (base.volumes.empty()) {
+        base.volumes.emplace_back();
+    }
     for (baker::VolumeConfig& v : base.volumes) {
+        v.layout = v.layout.value_or(VolumeLayout::Dense); // "auto": a dense grid here
         if (v.layout == VolumeLayout::Bricked) {
             return makeError(ErrorCode::InvalidArgument,
                              o.config + ": bench-noise compares dense grids probe by probe");

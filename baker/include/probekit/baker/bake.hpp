@@ -42,6 +42,11 @@ Result<VolumePlan> planVolumes(const Scene& scene, const BakeConfig& config);
 // docs/baking.md#scenes).
 Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeConfig& config);
 
+// Probes per metre of an automatic resolution without `density` over the padded `box`
+// (bricked: at level 0): kDefaultDensity dense, kBrickedDensity bricked, raised so the longest
+// axis gets at least kMinAutoProbes probes.
+float automaticDensity(const grid::Aabb& box, VolumeLayout layout);
+
 // Smallest distance between probes a volume may have per axis, metres: the grid spacing of a
 // dense volume, the deepest level's spacing of a bricked one.
 glm::vec3 probeSpacing(const VolumeDesc& desc);

@@ -59,8 +59,16 @@ constexpr float kAutoPaddingEnclosedHits = 0.9f;
 
 constexpr float kDefaultDensity = 4.0f; // probes per metre
 constexpr float kMinAutoProbes = 8.0f;  // along the longest axis of an automatic grid
+// Bricked: level-0 probes per metre when `density` is unset. Rounded to powers of two per axis
+// (2^round(log2)), level 0's spacing stays under 1/1.5 x sqrt(2) = 0.94 m wherever a player can
+// stand; refinement goes finer near geometry and light. On the arena level (65 x 8.5 x 65 m)
+// 1.35 m level-0 spacing measured 0.18 `--verify` error and 0.68 m measured 0.096 (issue 29).
+constexpr float kBrickedDensity = 1.5f;
 
+// max_probes when unset: dense 32^3; bricked 2^17 level-0 probes (4854 bricks: the arena level
+// at kBrickedDensity takes 32 x 4 x 32 = 4096).
 constexpr uint32_t kDefaultMaxProbes = 32768;
+constexpr uint32_t kDefaultMaxBrickedProbes = 131072;
 
 struct VolumeConfig {
     std::string name = "volume";
@@ -68,13 +76,15 @@ struct VolumeConfig {
     std::optional<glm::uvec3> resolution; // explicit powers of two; empty = "auto"
     // auto: probes per metre. Unset = chosen from the volume: kDefaultDensity, raised so the
     // longest axis gets at least kMinAutoProbes probes (small scenes still get a useful grid).
+    // Bricked: level-0 probes per metre; unset = kBrickedDensity, raised the same way.
     std::optional<float> density;
     uint32_t maxResolution = 256; // auto: cap per axis (<= 256)
     // auto: the most probes (bricked: level-0 probes, 27 per brick) the grid may have. Past it
     // the axis with the finest spacing is halved until it fits, so a flat level keeps even
     // spacing (65 x 8.5 x 65 m at 4/m: 64 x 8 x 64, 1.02 m) where a cap per axis would give
-    // 32 x 32 x 32 (2.03 x 0.27 x 2.03 m) for the same count. 32^3, the old per-axis cap's cube.
-    uint32_t maxProbes = kDefaultMaxProbes;
+    // 32 x 32 x 32 (2.03 x 0.27 x 2.03 m) for the same count. Unset: kDefaultMaxProbes dense,
+    // kDefaultMaxBrickedProbes bricked (maxProbesOf).
+    std::optional<uint32_t> maxProbes;
     grid::PositionMode position = grid::PositionMode::Center;
     Storage storage = Storage::Float16;
     sh::Order shOrder = sh::Order::L2;
@@ -83,7 +93,11 @@ struct VolumeConfig {
     // Bricked (adaptive) layout (formats/.../brick.hpp). `resolution`, `density` and
     // `maxResolution` then describe level 0: bricks per axis, explicit or
     // round_pow2(size * density / 3) (a brick spans 3 probe spacings).
-    VolumeLayout layout = VolumeLayout::Dense;
+    // Unset ("auto"): dense, unless the resolution is automatic, probes are centred and a
+    // dense grid at the density would need more than kDefaultMaxProbes probes (a level:
+    // 512 m^3 at 4 probes/m), where one budget's worth of probes spaces them past 0.25 m and a
+    // level's rooms need finer probes near walls than in their air (autoLayout, bake.cpp).
+    std::optional<VolumeLayout> layout;
     uint32_t maxLevel = 2; // bricked: finer levels allowed over level 0 (0..3), each 2x denser
     // Bricked: an octant of a level-0 brick gets its own finer brick when the brick's
     // interpolation at the octant's finer probes disagrees with their baked irradiance by more
