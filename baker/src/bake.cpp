@@ -33,9 +33,7 @@
 #include "volume/visibility.hpp"
 
 namespace probekit::baker {
-namespace {
 
-// The volumes a config bakes: those it lists, or one with the defaults when it lists none.
 std::vector<VolumeConfig> volumeConfigs(const BakeConfig& config) {
     std::vector<VolumeConfig> configs = config.volumes;
     if (configs.empty()) {
@@ -43,6 +41,8 @@ std::vector<VolumeConfig> volumeConfigs(const BakeConfig& config) {
     }
     return configs;
 }
+
+namespace {
 
 std::string volumeLabel(size_t index, const VolumeConfig& v) {
     return "volumes[" + std::to_string(index) + "] ('" + v.name + "')";
@@ -297,6 +297,17 @@ std::string resolutionNote(const std::string& label, float density, glm::vec3 si
     return text;
 }
 
+// Per axis, `size` x `density` / `per_cell` rounded to a power of two, at most 2^30: the
+// probes (per_cell 1) or bricks (per_cell kBrickCells) a density asks for before any cap.
+glm::uvec3 powerOfTwoCounts(const glm::vec3& size, float density, float per_cell) {
+    glm::uvec3 counts;
+    for (int a = 0; a < 3; ++a) {
+        const float n = size[a] * density / per_cell;
+        counts[a] = n >= float(1u << 30) ? (1u << 30) : roundToPowerOfTwo(n);
+    }
+    return counts;
+}
+
 // The probe budget of an automatic resolution: max_probes, or its default for the layout.
 uint32_t maxProbesOf(const VolumeConfig& v) {
     return v.maxProbes.value_or(v.layout == VolumeLayout::Bricked ? kDefaultMaxBrickedProbes
@@ -311,12 +322,11 @@ glm::uvec3 automaticResolution(const VolumeConfig& v, const grid::Aabb& box, flo
     const bool bricked = v.layout == VolumeLayout::Bricked;
     const glm::vec3 size = box.size();
     const uint32_t floor = v.position == grid::PositionMode::Corner ? 2u : 1u;
+    // Bricked: level-0 bricks, each spanning 3 probe spacings.
+    const glm::uvec3 asked =
+        powerOfTwoCounts(size, density, bricked ? float(brick::kBrickCells) : 1.0f);
     glm::uvec3 res;
-    glm::uvec3 asked;
     for (int a = 0; a < 3; ++a) {
-        // Bricked: level-0 bricks, each spanning 3 probe spacings.
-        const float probes = size[a] * density / (bricked ? float(brick::kBrickCells) : 1.0f);
-        asked[a] = probes >= float(1u << 30) ? (1u << 30) : roundToPowerOfTwo(probes);
         res[a] = std::max(std::min(asked[a], v.maxResolution), floor);
     }
     if (glm::any(glm::greaterThan(asked, glm::uvec3(v.maxResolution)))) {
@@ -442,11 +452,8 @@ VolumeConfig withLayout(VolumeConfig v, const grid::Aabb& box, const std::string
         return v;
     }
     const float density = volumeDensity(v, box);
-    double probes = 1.0;
-    for (int a = 0; a < 3; ++a) {
-        const float n = box.size()[a] * density;
-        probes *= n >= float(1u << 30) ? double(1u << 30) : double(roundToPowerOfTwo(n));
-    }
+    const glm::uvec3 counts = powerOfTwoCounts(box.size(), density, 1.0f);
+    const double probes = double(counts.x) * double(counts.y) * double(counts.z);
     if (probes <= double(kDefaultMaxProbes)) {
         return v;
     }
