@@ -234,15 +234,19 @@ struct Admits {
             t = "true or false";
             break;
         case Kind::Choice:
-            if (autoValue) { // one of the names, "auto" first
-                std::vector<std::string> all = {"auto"};
-                all.insert(all.end(), names.begin(), names.end());
-                return joinList(all);
-            }
-            t = joinList(names);
-            break;
+            return joinList(choiceNames());
         }
         return autoValue ? "auto or " + t : t;
+    }
+
+    // A choice's names, "auto" first when admitted.
+    std::vector<std::string> choiceNames() const {
+        std::vector<std::string> all;
+        if (autoValue) {
+            all.emplace_back("auto");
+        }
+        all.insert(all.end(), names.begin(), names.end());
+        return all;
     }
 };
 
@@ -343,13 +347,8 @@ public:
                 fail(path, "must be true or false");
             }
             return v;
-        case Kind::Choice: {
-            std::vector<std::string> names = a.names;
-            if (a.autoValue) {
-                names.insert(names.begin(), "auto");
-            }
-            return checkChoice(names, v, path);
-        }
+        case Kind::Choice:
+            return checkChoice(a.choiceNames(), v, path);
         }
         return v;
     }

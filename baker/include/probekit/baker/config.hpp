@@ -96,7 +96,7 @@ struct VolumeConfig {
     // Unset ("auto"): dense, unless the resolution is automatic, probes are centred and a
     // dense grid at the density would need more than kDefaultMaxProbes probes (a level:
     // 512 m^3 at 4 probes/m), where one budget's worth of probes spaces them past 0.25 m and a
-    // level's rooms need finer probes near walls than in their air (autoLayout, bake.cpp).
+    // level's rooms need finer probes near walls than in their air (withLayout, bake.cpp).
     std::optional<VolumeLayout> layout;
     uint32_t maxLevel = 2; // bricked: finer levels allowed over level 0 (0..3), each 2x denser
     // Bricked: an octant of a level-0 brick gets its own finer brick when the brick's
