@@ -130,9 +130,7 @@ namespace {
 // resolution left to the density rule (resolved by the caller) and its budget that of a
 // dense grid (the planner's calibration, kDensityTarget, was measured with both).
 void makeVolumesRefinable(BakeConfig& config) {
-    if (config.volumes.empty()) {
-        config.volumes.push_back(VolumeConfig{});
-    }
+    config.volumes = volumeConfigs(config);
     for (VolumeConfig& v : config.volumes) {
         v.layout = VolumeLayout::Bricked;
         v.position = grid::PositionMode::Center;
@@ -144,21 +142,28 @@ void makeVolumesRefinable(BakeConfig& config) {
 
 // The planner scales level 0 from a dense grid's density rule (kDefaultDensity), not from the
 // coarser default of a bricked volume (kBrickedDensity): each volume without a density gets
-// the dense rule's over the box its first placement found, and is placed again.
+// the dense rule's over the box its first placement found, and is placed again with the
+// padding that placement chose, so automatic padding traces its test rays once.
 Result<std::vector<VolumeDesc>> placeAtDenseDensity(const Scene& scene, BakeConfig& config) {
-    Result<std::vector<VolumeDesc>> first = resolveVolumes(scene, config);
+    Result<VolumePlan> first = planVolumes(scene, config);
     if (!first) {
-        return first;
+        return first.error();
     }
     bool changed = false;
+    BakeConfig again = config;
     for (size_t i = 0; i < config.volumes.size(); ++i) {
         if (!config.volumes[i].density) {
             config.volumes[i].density =
-                automaticDensity(first.value()[i].grid.bounds(), VolumeLayout::Dense);
+                automaticDensity(first.value().volumes[i].grid.bounds(), VolumeLayout::Dense);
+            again.volumes[i].density = config.volumes[i].density;
+            again.volumes[i].bounds.padding = first.value().padding[i];
             changed = true;
         }
     }
-    return changed ? resolveVolumes(scene, config) : first;
+    if (!changed) {
+        return std::move(first).value().volumes;
+    }
+    return resolveVolumes(scene, again);
 }
 
 // Level 0 covers the smooth light, where trilinear error grows with the square of the spacing:

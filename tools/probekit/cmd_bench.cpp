@@ -382,9 +382,7 @@ Result<baker::BakeConfig> benchBaseConfig(const BenchOptions& o) {
                                  "tools/bench-bricked.sh)");
         }
     }
-    if (base.volumes.empty()) {
-        base.volumes.emplace_back();
-    }
+    base.volumes = baker::volumeConfigs(base);
     for (baker::VolumeConfig& v : base.volumes) {
         v.layout = VolumeLayout::Dense; // "auto" too: the sweep's grids are dense
         v.storage = Storage::Float32;

@@ -197,9 +197,7 @@ Result<baker::BakeConfig> noiseBaseConfig(const BenchNoiseOptions& o) {
         return makeError(ErrorCode::InvalidArgument,
                          o.config + ": bench-noise measures method path without target_error");
     }
-    if (base.volumes.empty()) {
-        base.volumes.emplace_back();
-    }
+    base.volumes = baker::volumeConfigs(base);
     for (baker::VolumeConfig& v : base.volumes) {
         v.layout = v.layout.value_or(VolumeLayout::Dense); // "auto": a dense grid here
         if (v.layout == VolumeLayout::Bricked) {

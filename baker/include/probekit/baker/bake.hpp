@@ -42,6 +42,9 @@ Result<VolumePlan> planVolumes(const Scene& scene, const BakeConfig& config);
 // docs/baking.md#scenes).
 Result<std::vector<VolumeDesc>> resolveVolumes(const Scene& scene, const BakeConfig& config);
 
+// The volumes a config bakes: those it lists, or one with the defaults when it lists none.
+std::vector<VolumeConfig> volumeConfigs(const BakeConfig& config);
+
 // Probes per metre of an automatic resolution without `density` over the padded `box`
 // (bricked: at level 0): kDefaultDensity dense, kBrickedDensity bricked, raised so the longest
 // axis gets at least kMinAutoProbes probes.
