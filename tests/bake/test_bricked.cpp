@@ -302,18 +302,24 @@ Volume volumeOf(const BrickedOutcome& o) {
 }
 
 // The refinement rule's error scale for an analytic field: RMS of E over the level-0 bricks'
-// probes (64 per brick, shared border probes counted in each brick, as the baker lists them).
+// probes (64 per brick, shared border probes counted in each brick, as the baker lists them),
+// each E^2 clamped to the value at rank floor(0.999 (n - 1)) in ascending order.
 double analyticScale(const VolumeDesc& desc, const Field& f) {
-    double sum2 = 0.0;
-    size_t count = 0;
+    std::vector<double> squares;
     for (const Brick& b : brick::uniformLayout(desc.grid.resolution(), 0).bricks) {
         for (uint32_t k = 0; k < brick::kBrickProbeCount; ++k) {
             const double e = f(glm::dvec3(probePosition(desc, b, localOf(k))));
-            sum2 += e * e;
-            ++count;
+            squares.push_back(e * e);
         }
     }
-    return std::sqrt(sum2 / double(count));
+    std::vector<double> ascending = squares;
+    std::sort(ascending.begin(), ascending.end());
+    const double cap = ascending[size_t(0.999 * double(ascending.size() - 1))];
+    double sum2 = 0.0;
+    for (double e2 : squares) {
+        sum2 += std::min(e2, cap);
+    }
+    return std::sqrt(sum2 / double(squares.size()));
 }
 
 // The rule's measured disagreement of brick b, recomputed in double: RMS over the 7^3 - 4^3
@@ -1044,6 +1050,64 @@ TEST(BrickedRefinement, KeepsExactlyTheOctantsAboveTheThreshold) {
     EXPECT_NEAR(above.predictedError, std::sqrt(mean2), kAnalyticRelTolerance * std::sqrt(mean2));
     EXPECT_LT(half.predictedError, above.predictedError);
     EXPECT_LT(below.predictedError, half.predictedError);
+}
+
+// A probe a hair's breadth from a point light sees a thousand times the light of the rest: it
+// must not set the error scale (the closed arena's did, 63 W/m^2 against 1.5, and its
+// refinement then saw no error anywhere). Here one level-0 probe carries a spike of 1000
+// (the smooth field is 1..1.75): octant 0, whose interpolation it enters, is kept, and the far
+// octants are kept or not by their own disagreement against the clamped scale, at a
+// threshold the unclamped scale (over 14x larger) would put every one of them under.
+TEST(BrickedRefinement, OneProbeBesideALightDoesNotSetTheErrorScale) {
+    const grid::Aabb box{glm::vec3(0.0f), glm::vec3(1.0f)};
+    const VolumeDesc desc = analyticDesc(box, glm::uvec3(1), 1);
+    const glm::dvec3 hot(probePosition(desc, Brick{}, localOf(0)));
+    const Field smooth = [](glm::dvec3 p) {
+        return 1.0 + 0.5 * p.x * p.x + 0.25 * p.y * p.z * p.z;
+    };
+    const Field f = [&](glm::dvec3 p) {
+        return smooth(p) + (glm::distance(p, hot) < 1e-4 ? 1000.0 : 0.0);
+    };
+    const double scale = analyticScale(desc, f);
+    double plain2 = 0.0;
+    for (uint32_t k = 0; k < brick::kBrickProbeCount; ++k) {
+        const double e = f(glm::dvec3(probePosition(desc, Brick{}, localOf(k))));
+        plain2 += e * e / double(brick::kBrickProbeCount);
+    }
+    ASSERT_GT(std::sqrt(plain2), 14.0 * scale) << "the spike must dominate the plain RMS";
+    double d[8];
+    for (int o = 0; o < 8; ++o) {
+        d[o] = analyticDisagreement(desc, Brick{}, f, scale, o);
+    }
+    std::vector<double> far(d + 1, d + 8);
+    std::sort(far.begin(), far.end());
+    const double threshold = 0.5 * (far[2] + far[3]);
+    ASSERT_GT(far[3] - far[2], 20.0 * kAnalyticRelTolerance * threshold)
+        << "the field must separate the far octants";
+    ASSERT_GT(d[0], 10.0 * threshold);
+    AnalyticSettings s(1, 0.0f);
+    s.volume.refineError = float(threshold);
+    Result<BrickedOutcome> o =
+        bakeBricked(coveringScene(box), desc, sh::Order::L1, s, analyticBatch(f));
+    ASSERT_TRUE(o.ok());
+    std::vector<int> kept;
+    for (const Brick& b : o.value().desc.bricks.bricks) {
+        if (b.level == 1) {
+            kept.push_back(int(b.coord.x + 2 * b.coord.y + 4 * b.coord.z));
+        }
+    }
+    std::vector<int> expected;
+    for (int oct = 0; oct < 8; ++oct) {
+        if (d[oct] > threshold) {
+            expected.push_back(oct);
+        }
+    }
+    std::sort(kept.begin(), kept.end());
+    EXPECT_EQ(kept, expected);
+    EXPECT_EQ(expected.size(), 5u); // octant 0 and four far octants
+    // Against the plain RMS, every far octant's disagreement is under the threshold.
+    const double ratio = scale / std::sqrt(plain2);
+    EXPECT_LT(far[6] * ratio, threshold);
 }
 
 // -------------------------------------------------------------------------------------------------

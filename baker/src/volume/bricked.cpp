@@ -405,22 +405,39 @@ private:
     std::vector<Level> m_levels;
 };
 
-// RMS over valid points, normals and channels of the irradiance: the error scale.
+// RMS over valid points, normals and channels of the irradiance, the brightest 0.1% of points
+// clamped to the 99.9th percentile: the error scale. Unclamped, the RMS of a field with point
+// lights is set by whichever lattice point lies closest to a light (1/r^2 irradiance has no
+// finite mean square near one): on the closed arena one probe at 9,990 W/m^2 made it 63 W/m^2
+// against 1.5 for the rest of the level, and refinement there stopped seeing any error.
 float irradianceScale(const Lattice& lattice, const std::vector<glm::uvec3>& points,
                       sh::Order order) {
-    double sum2 = 0.0;
-    size_t count = 0;
+    std::vector<double> squares; // per point: mean over normals and channels of E^2
+    squares.reserve(points.size());
     for (const glm::uvec3& u : points) {
         if (!lattice.valid(u)) {
             continue;
         }
+        double sum2 = 0.0;
         for (const glm::vec3& n : kAxisNormals) {
             const glm::vec3 e = sh::irradiance(lattice.sh(u), order, n);
             sum2 += double(glm::dot(e, e));
-            count += 3;
         }
+        squares.push_back(sum2 / (3.0 * double(std::size(kAxisNormals))));
     }
-    const double rms = count ? std::sqrt(sum2 / double(count)) : 0.0;
+    if (squares.empty()) {
+        return 1.0f;
+    }
+    constexpr double kClampQuantile = 0.999;
+    std::vector<double> sorted = squares;
+    const auto at = sorted.begin() + std::ptrdiff_t(kClampQuantile * double(sorted.size() - 1));
+    std::nth_element(sorted.begin(), at, sorted.end());
+    const double cap = *at;
+    double sum = 0.0;
+    for (double v : squares) {
+        sum += std::min(v, cap);
+    }
+    const double rms = std::sqrt(sum / double(squares.size()));
     return rms > 0.0 ? float(rms) : 1.0f;
 }
 

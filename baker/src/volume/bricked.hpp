@@ -78,7 +78,8 @@ struct BrickedOutcome {
 };
 
 // Error measure: irradiance at the six axis normals, every channel, relative to the volume's
-// RMS irradiance (over its valid level-0 probes), RMS over points. Monte Carlo noise is
+// RMS irradiance (over its valid level-0 probes, the brightest 0.1% counted at the 99.9th
+// percentile's value: irradianceScale), RMS over points. Monte Carlo noise is
 // measured by baking up to 64 level-0 probes a second time with independent samples, and the
 // noise's expected share is subtracted from every squared disagreement.
 // Refinement rule (one level at a time, starting from every level-0 brick; t_l =
