@@ -100,18 +100,21 @@ estimateError(const std::function<glm::vec3(glm::vec3 point, glm::vec3 normal)>&
               const std::vector<glm::vec3>& points, const PointBake& ref_a,
               const PointBake& ref_b) {
     ErrorEstimate e;
-    double error2 = 0.0, reference2 = 0.0, noise2 = 0.0;
+    double error2 = 0.0, reference2 = 0.0, noise2 = 0.0, weight2 = 0.0;
     for (size_t i = 0; i < points.size(); ++i) {
         if (ref_a.valid[i] != kProbeValid || ref_b.valid[i] != kProbeValid) {
             continue;
         }
         const sh::ShRgb reference = mean(ref_a.sh[i], ref_b.sh[i]);
+        double point2 = 0.0;
         for (const glm::vec3& n : kAxisNormals) {
             const glm::vec3 r = sh::irradiance(reference, sh::Order::L2, n);
             const glm::vec3 d = irradiance(points[i], n) - r;
             error2 += double(glm::dot(d, d));
-            reference2 += double(glm::dot(r, r));
+            point2 += double(glm::dot(r, r));
         }
+        reference2 += point2;
+        weight2 += point2 * point2;
         // Var(mean of two) = E|a - b|^2 / 4.
         noise2 += 0.25 * squaredAxisIrradianceDifference(ref_a.sh[i], ref_b.sh[i], sh::Order::L2);
         ++e.points;
@@ -120,6 +123,7 @@ estimateError(const std::function<glm::vec3(glm::vec3 point, glm::vec3 normal)>&
         e.relRmseRaw = std::sqrt(error2 / reference2);
         e.referenceNoise = std::sqrt(noise2 / reference2);
         e.relRmse = std::sqrt(std::max(0.0, error2 - noise2) / reference2);
+        e.effectivePoints = reference2 * reference2 / weight2;
     }
     return e;
 }

@@ -68,6 +68,30 @@ TEST(TargetError, EstimateErrorMeasuresRelativeRmsAndSubtractsReferenceNoise) {
     EXPECT_EQ(estimateError(scaled(1.0), points, holes, a).points, n - 1);
 }
 
+// Equal points all carry the reference: n effective points. One point 100x brighter than 15
+// others (a point near a light) carries nearly all of it: weights w = E^2 give
+// (10^4 + 15)^2 / (10^8 + 15) = 1.0030 effective points, and the relative error is then that
+// point's alone (10% there, exact elsewhere: sqrt(0.01 x 10^4 / (10^4 + 15)) = 0.09993).
+TEST(TargetError, EffectivePointsSayWhenAFewBrightPointsDecideTheError) {
+    const size_t n = 16;
+    std::vector<glm::vec3> points(n, glm::vec3(0.0f));
+    points[0] = glm::vec3(1.0f, 0.0f, 0.0f);
+    const glm::vec3 radiance(1.0f);
+    const PointBake even = constantReference(n, radiance);
+    const glm::vec3 e = float(M_PI) * radiance;
+    auto exact_everywhere = [=](glm::vec3, glm::vec3) { return e; };
+    EXPECT_NEAR(estimateError(exact_everywhere, points, even, even).effectivePoints, double(n),
+                kExact * double(n));
+
+    PointBake hot = even;
+    hot.sh[0] = constantRadiance(radiance * 100.0f);
+    auto off_at_the_hot_point = [=](glm::vec3 p, glm::vec3) { return p.x > 0.5f ? e * 110.0f : e; };
+    const ErrorEstimate est = estimateError(off_at_the_hot_point, points, hot, hot);
+    const double expected_points = (1e4 + 15.0) * (1e4 + 15.0) / (1e8 + 15.0);
+    EXPECT_NEAR(est.effectivePoints, expected_points, kExact * expected_points);
+    EXPECT_NEAR(est.relRmse, std::sqrt(0.01 * 1e4 / (1e4 + 15.0)), kExact);
+}
+
 TEST(TargetError, BudgetSplitsTheTargetBetweenNoiseBandTwoAndInterpolation) {
     const Scene scene = test::generatedScene("cornell");
     const double target = 0.1;

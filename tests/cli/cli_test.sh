@@ -109,6 +109,8 @@ expect 0 "verify: measured error .*\([0-9]+ of 32 points valid" -- "$pk" bake co
     -o target.pvol --target-error 0.2 --verify --verify-points 32 --verify-samples 256 \
     --report verify.json
 check "the report has both verify counts" grep -qE '"points_requested": 32' verify.json
+check "the report says how many points carry the verify reference" \
+    grep -qE '"effective_points": [0-9]+\.?[0-9]*' verify.json
 expect 1 "bricked.json: volumes\[0\].layout: bench compares dense grids" -- \
     "$pk" bench cornell.gltf --config bricked.json --out bench.csv --quick
 echo '{"volumes": [{"layout": "bricked", "levels": 5}]}' >badlevels.json

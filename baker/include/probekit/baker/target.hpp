@@ -44,6 +44,11 @@ struct ErrorEstimate {
     double relRmseRaw = 0.0;     // without the subtraction
     double referenceNoise = 0.0; // RMS noise of the reference mean, same units
     size_t points = 0;           // valid points compared
+    // How many points carry the reference's squared irradiance (Kish's effective sample size
+    // of the weights |E_ref|^2: (sum w)^2 / sum w^2). Near a point light irradiance grows as
+    // 1/r^2, and one or two points close to lights can carry nearly all of it: the relative
+    // RMS is then those points' error, whatever the rest of the volume does.
+    double effectivePoints = 0.0;
 };
 // `irradiance(point, normal)` is what the baked volumes give (e.g. runtime::VolumeSet
 // irradiance, W/m^2 per channel); ref_a / ref_b are two independent reference estimates
