@@ -741,6 +741,11 @@ public:
                                   run.scene, *method.lpvLights, m_config.lpv, desc, run.threads))
                             : std::nullopt),
           m_path(run.scene, run.tracer, methodPathConfig(m_config, method), desc.shOrder) {
+        // Dilation replaces every invalid probe's value, so the paths of one are never traced.
+        // Without it the file keeps invalid probes' traced values, and they are traced.
+        if (m_config.dilate) {
+            m_path.stopInsideGeometry(m_config.backfaceThreshold);
+        }
         if (method.vplGatherer) {
             m_vpl.emplace(run.scene, run.tracer, *method.vplGatherer, *method.vplConfig,
                           m_config.path, desc.shOrder);

@@ -563,6 +563,9 @@ const std::vector<Field<PathConfig>>& pathFields() {
         field("noise_floor", &PathConfig::noiseFloor, nonNegative(), "W/m^2",
               "adaptive sampling: a probe darker than this (RMS irradiance over the axis normals) "
               "has its noise measured against it (--target-error sets it)"),
+        field("shadow_rays", &PathConfig::shadowRays, whole(0, 1u << 16), "",
+              "expected shadow rays to punctual lights per path vertex (0: one to every light)",
+              "--shadow-rays"),
     };
     return fields;
 }

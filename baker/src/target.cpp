@@ -77,7 +77,9 @@ Result<PointBake> bakePoints(const Scene& scene, const BakeConfig& config,
     PathConfig settings;
     settings.samples = samples;
     settings.maxBounces = config.path.maxBounces;
-    const PathIntegrator integrator(scene, *tracer.value(), settings, sh::Order::L2);
+    PathIntegrator integrator(scene, *tracer.value(), settings, sh::Order::L2);
+    // Points inside geometry are skipped by every comparison: their paths are not traced.
+    integrator.stopInsideGeometry(config.backfaceThreshold);
     PointBake out;
     out.sh.resize(points.size());
     out.valid.resize(points.size());

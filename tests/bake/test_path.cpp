@@ -1073,6 +1073,129 @@ TEST(PathTracerValidity, BackFaceFractionInsideAndOutsideClosedBox) {
     EXPECT_EQ(integrator.bakeProbe({3.0f, 0.5f, 0.0f}, 1, 0, 0).backFaceFraction, 0.0f);
 }
 
+// stopInsideGeometry decides validity from primary rays before any path. A box with outward
+// walls and no lid, under a sky and beside a point light: inside it a probe sees back faces on
+// a fraction of its sphere that falls with height (all of it at the floor, none far above the
+// rim), so a column of probes crosses the 0.25 threshold. Every probe must get the verdict the
+// full trace gives; valid probes the full trace's bits; invalid ones no path (rays <= N).
+TEST(PathTracerValidity, InsideGeometryFoundFromPrimaryRaysAlone) {
+    Scene scene = emptyScene();
+    const uint32_t wall = addMaterial(scene, glm::vec3(0.6f), glm::vec3(0.0f));
+    const glm::vec3 lo(-1.0f, 0.0f, -1.0f), hi(1.0f, 1.0f, 1.0f);
+    addQuad(scene, {lo.x, lo.y, lo.z}, {lo.x, hi.y, lo.z}, {hi.x, hi.y, lo.z}, {hi.x, lo.y, lo.z},
+            wall); // -z
+    addQuad(scene, {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z}, {hi.x, hi.y, hi.z}, {lo.x, hi.y, hi.z},
+            wall); // +z
+    addQuad(scene, {lo.x, lo.y, lo.z}, {lo.x, lo.y, hi.z}, {lo.x, hi.y, hi.z}, {lo.x, hi.y, lo.z},
+            wall); // -x
+    addQuad(scene, {hi.x, lo.y, lo.z}, {hi.x, hi.y, lo.z}, {hi.x, hi.y, hi.z}, {hi.x, lo.y, hi.z},
+            wall); // +x
+    addQuad(scene, {lo.x, lo.y, lo.z}, {hi.x, lo.y, lo.z}, {hi.x, lo.y, hi.z}, {lo.x, lo.y, hi.z},
+            wall); // -y
+    scene.environment.constant = glm::vec3(0.5f);
+    PunctualLight light;
+    light.position = glm::vec3(0.3f, 2.5f, 0.2f);
+    light.intensity = glm::vec3(4.0f);
+    scene.lights.push_back(light);
+    const auto tracer = boundedTracer(scene);
+    ASSERT_TRUE(tracer);
+    constexpr float kThreshold = 0.25f;
+    // Fixed sampling, and adaptive sampling with a target every probe meets at its minimum (8
+    // batches of 16), where the full trace's verdict is the minimum's.
+    for (const float noise_target : {0.0f, 1e6f}) {
+        SCOPED_TRACE(noise_target);
+        PathConfig settings;
+        settings.samples = 128;
+        settings.noiseTarget = noise_target;
+        const PathIntegrator full(scene, *tracer, settings, sh::Order::L2);
+        PathIntegrator stopping(scene, *tracer, settings, sh::Order::L2);
+        stopping.stopInsideGeometry(kThreshold);
+
+        int valid = 0, invalid = 0;
+        uint64_t full_rays_invalid = 0;
+        for (int k = 0; k < 40; ++k) {
+            const glm::vec3 p(0.35f, 0.05f + 0.05f * float(k), -0.25f);
+            SCOPED_TRACE(p.y);
+            const ProbeSample a = full.bakeProbe(p, 3, 0, uint64_t(k));
+            const ProbeSample b = stopping.bakeProbe(p, 3, 0, uint64_t(k));
+            ASSERT_EQ(probeValidity(b, kThreshold), probeValidity(a, kThreshold));
+            if (probeValidity(a, kThreshold) == kProbeValid) {
+                ++valid;
+                EXPECT_EQ(b.sh, a.sh);
+                // The check's primary rays on top of the full trace's, at most N of them.
+                EXPECT_GE(b.rays, a.rays);
+                EXPECT_LE(b.rays, a.rays + settings.samples);
+                EXPECT_EQ(b.backFaceFraction, a.backFaceFraction);
+                EXPECT_EQ(b.samples, settings.samples);
+            } else {
+                ++invalid;
+                full_rays_invalid += a.rays;
+                EXPECT_LE(b.rays, settings.samples);
+                EXPECT_EQ(b.samples, 0u);
+                EXPECT_GT(b.backFaceFraction, kThreshold);
+                EXPECT_EQ(b.sh, sh::ShRgb{});
+            }
+        }
+        // The column crosses the threshold: both verdicts occur, several times each.
+        EXPECT_GE(valid, 5);
+        EXPECT_GE(invalid, 5);
+        // A full trace of an invalid probe adds a shadow ray to the light (and a continuation) at
+        // every wall it hits: more than the N primary rays that bound the check.
+        EXPECT_GT(full_rays_invalid, uint64_t(invalid) * settings.samples);
+    }
+}
+
+// path.shadow_rays: Russian roulette on the shadow rays to punctual lights. A black floor
+// point under 24 point lights of spread intensities and distances, half of them behind a black
+// wall: nothing reflects, so every sample of the surface estimator is the vertex's direct light
+// alone, exact (zero variance) when every light gets its ray. With 4 shadow rays per vertex
+// the mean must agree with it within kSigmas standard errors, the roulette must add noise (it
+// ran), and the rays per sample must fall to at most the continuation plus 4 on average.
+TEST(PathTracerShadowRays, RouletteOnManyLightsIsUnbiasedAndBoundsTheRays) {
+    Scene scene = emptyScene();
+    const uint32_t black = addMaterial(scene, glm::vec3(0.0f), glm::vec3(0.0f));
+    addQuad(scene, {-8, 0, -8}, {-8, 0, 8}, {8, 0, 8}, {8, 0, -8}, black); // floor, facing +y
+    addBox(scene, {1.0f, 0.0f, -8.0f}, {1.2f, 3.0f, 8.0f}, black);         // wall at x = 1.1
+    constexpr int kLights = 24;
+    for (int i = 0; i < kLights; ++i) {
+        PunctualLight light;
+        const float side = i % 2 == 0 ? -1.0f : 1.0f; // odd lights beyond the wall
+        light.position = glm::vec3(side * (1.5f + 0.25f * float(i)), 0.5f + 0.1f * float(i),
+                                   -3.0f + 0.25f * float(i));
+        light.intensity = glm::vec3(0.5f + float(i % 5), 1.0f, 0.2f * float(i % 3) + 0.3f);
+        scene.lights.push_back(light);
+    }
+    const auto tracer = boundedTracer(scene);
+    ASSERT_TRUE(tracer);
+    const glm::vec3 point(0.0f, 0.0f, 0.5f), up(0.0f, 1.0f, 0.0f);
+    constexpr uint32_t kSamples = 4096;
+
+    PathConfig every;
+    every.shadowRays = 0;
+    const PathIntegrator exact(scene, *tracer, every, sh::Order::L2);
+    const PathIntegrator::SurfaceEstimate e = exact.surfaceIrradiance(point, up, up, kSamples, 9);
+    ASSERT_EQ(e.varianceOfMean, glm::vec3(0.0f));
+    ASSERT_GT(e.irradiance.x, 0.0f);
+
+    PathConfig roulette;
+    roulette.shadowRays = 4;
+    const PathIntegrator rr(scene, *tracer, roulette, sh::Order::L2);
+    const PathIntegrator::SurfaceEstimate r = rr.surfaceIrradiance(point, up, up, kSamples, 9);
+    for (int c = 0; c < 3; ++c) {
+        SCOPED_TRACE(c);
+        const double sigma = std::sqrt(double(r.varianceOfMean[c]));
+        EXPECT_GT(sigma, 0.0);
+        EXPECT_NEAR(r.irradiance[c], e.irradiance[c],
+                    kSigmas * sigma + kFloatSlack * double(e.irradiance[c]));
+    }
+    // Every light is above the floor: the exact estimator traces a continuation and 24 shadow
+    // rays per sample. The roulette's mean of at most 4 shadow rays carries a 5-sigma allowance
+    // for the draws (each ray is a Bernoulli draw, variance <= 1/4 each).
+    EXPECT_EQ(e.rays, uint64_t(kSamples) * (1 + kLights));
+    const double allowance = kSigmas * std::sqrt(kLights * 0.25 / kSamples);
+    EXPECT_LE(double(r.rays) / kSamples, 1.0 + 4.0 + allowance);
+}
+
 TEST(PathTracerDeterminism, SameInputsBitIdenticalAcrossThreads) {
     Scene scene = emptyScene();
     addBox(scene, glm::vec3(-1.0f), glm::vec3(1.0f),

@@ -9,6 +9,7 @@
 #include <limits>
 #include <numbers>
 #include <optional>
+#include <vector>
 
 #include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
@@ -51,6 +52,10 @@ ProbeSample PathIntegrator::bakeProbe(glm::vec3 position, uint64_t seed, uint32_
                                       uint64_t probe_index, const sh::ShRgb* known) const {
     const ScopedFloatMode float_mode;
     const uint64_t probe_key = hashKeys(seed, volume_index, probe_index);
+    ProbeSample inside{};
+    if (insideGeometry(position, probe_key, inside)) {
+        return inside;
+    }
 
     // Delta lights at the probe itself, projected exactly.
     sh::ShRgb deltas{};
@@ -76,7 +81,7 @@ ProbeSample PathIntegrator::bakeProbe(glm::vec3 position, uint64_t seed, uint32_
                              ? bakeAdaptive(position, probe_key, deltas, known)
                              : bakeFixed(position, probe_key);
     result.sh += deltas;
-    result.rays += delta_rays;
+    result.rays += delta_rays + inside.rays;
     return result;
 }
 
@@ -86,6 +91,46 @@ void PathIntegrator::traceSample(glm::vec3 position, glm::vec3 dir, uint64_t rng
     const glm::vec3 radiance = incidentRadiance(position, dir, kProbeDirectionPdf, rng, stats);
     probeDirectLight(position, 1.0f / float(n), rng, sh, stats);
     sh::addSample(sh, m_order, dir, radiance, kFourPi / float(n));
+}
+
+bool PathIntegrator::insideGeometry(glm::vec3 position, uint64_t probe_key,
+                                    ProbeSample& sample) const {
+    if (!(m_insideAbove < 1.0f)) {
+        return false;
+    }
+    // The directions the rule counts: fixed sampling's N points of the probe's sequence, or
+    // adaptive sampling's minimum batches, each its own sequence (bakeAdaptive, traceBatch).
+    const bool adaptive = m_config.noiseTarget > 0.0f;
+    const BatchPlan plan = adaptive ? batchPlan(m_config) : BatchPlan{m_config.samples, 1, 1};
+    const auto sobolSeed = [&](uint32_t group) {
+        const uint64_t key = adaptive ? hashKeys(probe_key, group) : probe_key;
+        return uint32_t(key ^ (key >> 32));
+    };
+    const uint64_t n = uint64_t(plan.size) * plan.minBatches;
+    // probeValidity's test on the count over all n; the count only grows, so once it holds (or
+    // can no longer hold with every remaining ray a back face) the verdict is final.
+    const auto fraction = [n](uint64_t back_faces) {
+        return float(double(back_faces) / double(n));
+    };
+    uint64_t back_faces = 0, cast = 0;
+    for (uint32_t group = 0; group < plan.minBatches; ++group) {
+        const uint32_t sobol_seed = sobolSeed(group);
+        for (uint32_t i = 0; i < plan.size; ++i, ++cast) {
+            if (!(fraction(back_faces + (n - cast)) > m_insideAbove)) {
+                sample.rays = cast;
+                return false;
+            }
+            const glm::vec3 dir = sphereDirection(scrambledSobol2d(i, sobol_seed));
+            const std::optional<Hit> hit = m_tracer.intersect(position, dir);
+            back_faces += hit && hit->backFace ? 1 : 0;
+            if (fraction(back_faces) > m_insideAbove) {
+                sample.rays = cast + 1;
+                sample.backFaceFraction = float(double(back_faces) / double(cast + 1));
+                return true;
+            }
+        }
+    }
+    return false;
 }
 
 ProbeSample PathIntegrator::bakeFixed(glm::vec3 position, uint64_t probe_key) const {
@@ -374,11 +419,24 @@ void PathIntegrator::probeDirectLight(glm::vec3 position, float sample_weight, R
     }
 }
 
-glm::vec3 PathIntegrator::directLight(glm::vec3 position, glm::vec3 offset_origin, glm::vec3 normal,
-                                      Rng& rng, PathStats& stats) const {
+glm::vec3 PathIntegrator::punctualLight(glm::vec3 position, glm::vec3 offset_origin,
+                                        glm::vec3 normal, Rng& rng, PathStats& stats) const {
     glm::vec3 sum(0.0f);
-
-    // (a) Punctual and directional lights: deltas, one shadow ray each.
+    // Punctual and directional lights are deltas. Each lights the vertex with its unoccluded
+    // contribution c (irradiance x cos) times its visibility. With more than
+    // PathConfig::shadowRays lights able to light it, light i keeps its shadow ray with
+    // probability q_i = min(1, shadowRays c_i / sum c) and a kept one counts 1 / q_i (Russian
+    // roulette: unbiased; the bright lights keep q = 1 and add no noise, and the expected
+    // count of rays is at most shadowRays).
+    struct Lit {
+        glm::vec3 direction;
+        float distance;
+        glm::vec3 contribution;
+    };
+    // Reused per thread: a vertex of a level with many lights would otherwise allocate.
+    thread_local std::vector<Lit> lit;
+    lit.clear();
+    float total = 0.0f;
     for (const PunctualLight& light : m_scene.lights) {
         const std::optional<LightDirection> to_light = directionToLight(light, position);
         if (!to_light) {
@@ -388,15 +446,39 @@ glm::vec3 PathIntegrator::directLight(glm::vec3 position, glm::vec3 offset_origi
         if (cos_theta <= 0.0f) {
             continue;
         }
-        const glm::vec3 irradiance = normalIrradianceAt(light, position);
-        if (isBlack(irradiance)) {
+        const glm::vec3 c = normalIrradianceAt(light, position) * cos_theta;
+        if (isBlack(c)) {
             continue;
         }
+        lit.push_back(Lit{to_light->direction, to_light->distance, c});
+        total += c.x + c.y + c.z;
+    }
+    const bool roulette = m_config.shadowRays > 0 && lit.size() > m_config.shadowRays;
+    for (const Lit& l : lit) {
+        glm::vec3 c = l.contribution;
+        if (roulette) {
+            const float q = std::min(1.0f, float(m_config.shadowRays) * (c.x + c.y + c.z) / total);
+            if (q < 1.0f) {
+                if (!(rng.uniform() < q)) {
+                    continue;
+                }
+                c /= q;
+            }
+        }
         ++stats.rays;
-        if (!m_tracer.occluded(offset_origin, to_light->direction, to_light->distance)) {
-            sum += irradiance * cos_theta;
+        if (!m_tracer.occluded(offset_origin, l.direction, l.distance)) {
+            sum += c;
         }
     }
+    return sum;
+}
+
+glm::vec3 PathIntegrator::directLight(glm::vec3 position, glm::vec3 offset_origin, glm::vec3 normal,
+                                      Rng& rng, PathStats& stats) const {
+    glm::vec3 sum(0.0f);
+
+    // (a) Punctual and directional lights (punctualLight).
+    sum += punctualLight(position, offset_origin, normal, rng, stats);
 
     // (b) One emissive-triangle sample, MIS against the cosine-sampled continuation.
     if (const std::optional<EmitterSampleFrom> e = sampleEmitterFrom(position, rng)) {

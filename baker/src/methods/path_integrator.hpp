@@ -14,7 +14,9 @@
 //    arriving ray. Emission seen directly from the probe counts fully (the probe is not a
 //    surface and samples no lights).
 //  * At every diffuse vertex: next-event estimation to (a) every punctual light (point, spot,
-//    directional: normalIrradianceAt x cos x albedo / pi, one shadow ray each),
+//    directional: normalIrradianceAt x cos x albedo / pi, one shadow ray each; with more lights
+//    than PathConfig::shadowRays able to light the vertex, each ray is kept with probability
+//    min(1, shadowRays x its share of their unoccluded sum) and weighted by its inverse),
 //    (b) one emissive-triangle sample (LightSampler), (c) one environment sample for lat-long
 //    maps (LightSampler). (b) and (c) are combined with the cosine-sampled continuation by
 //    multiple importance sampling with the power heuristic (Veach 1997, ch. 9). A constant
@@ -42,8 +44,16 @@
 // LPV cascades); the denominator is at least 18 noiseFloor^2. The probe stops once noise <=
 // noiseTarget or K reaches the cap; otherwise it traces up to the number of batches the estimate
 // predicts, at most twice the present number, before it checks again. The rule reads only the
-// probe's own samples, so the result does not depend on threads or order. A probe that is already
-// invalid after the minimum (inside geometry, probeValidity) stops there: its value is discarded.
+// probe's own samples, so the result does not depend on threads or order.
+//
+// Probes inside geometry (stopInsideGeometry(threshold)): before any path, the primary rays
+// alone of the directions the paths would take first (fixed sampling's N; adaptive sampling's
+// minimum batches) are cast and their back faces counted, and the count stops as soon as
+// probeValidity's verdict on it is known. A probe found inside geometry returns there with no
+// value (the bake discards it and dilates). Any other probe is traced as without the check, to
+// the same bits: fixed sampling's verdict is the same, and an adaptive probe is invalid after
+// its minimum exactly when the check finds it. The check costs at most N primary rays on a valid
+// probe, against the N paths (a shadow ray per light at every vertex) an invalid one does not take.
 //
 // Punctual and directional lights are deltas: no sampled direction can hit them, so their
 // direct light at the probe is added analytically, projectDelta(dir to light,
@@ -139,6 +149,12 @@ public:
 
     const PathConfig& config() const { return m_config; }
 
+    // Probes that probeValidity(sample, backface_threshold) calls invalid on their first
+    // directions are found from primary rays before any path is traced, and return with a zero
+    // value, samples = 0 and their back-face fraction over the rays cast (see above). Off by
+    // default (every probe fully traced), and without effect at a threshold of 1 or more.
+    void stopInsideGeometry(float backface_threshold) { m_insideAbove = backface_threshold; }
+
 private:
     struct PathStats {
         uint64_t rays = 0;
@@ -146,6 +162,10 @@ private:
         bool primaryNear = false;
     };
 
+    // The pre-pass of stopInsideGeometry: true when the probe's primary rays decide it is
+    // inside geometry, `sample` then holding the back-face fraction; sample.rays counts the
+    // rays cast either way.
+    bool insideGeometry(glm::vec3 position, uint64_t probe_key, ProbeSample& sample) const;
     // Fixed sampling: `samples` points of one Sobol sequence.
     ProbeSample bakeFixed(glm::vec3 position, uint64_t probe_key) const;
     // Adaptive sampling (see above); `fixed_part` is the delta lights' exact SH at the probe.
@@ -191,6 +211,11 @@ private:
     void probeDirectLight(glm::vec3 position, float sample_weight, Rng& rng, sh::ShRgb& sh,
                           PathStats& stats) const;
 
+    // directLight's punctual and directional lights: the sum of their irradiance x cos, one
+    // shadow ray each, or by Russian roulette past PathConfig::shadowRays (see above).
+    glm::vec3 punctualLight(glm::vec3 position, glm::vec3 offset_origin, glm::vec3 normal, Rng& rng,
+                            PathStats& stats) const;
+
     // Next-event estimation at a diffuse vertex: the sum over lights of (incident radiance x
     // cos / pdf, MIS-weighted), to be multiplied by albedo / pi. `offset_origin` is the vertex
     // moved off the surface to the side of `normal` (the shading normal).
@@ -209,6 +234,7 @@ private:
     sh::Order m_order;
     LightSampler m_lights;
     bool m_environmentBlack;
+    float m_insideAbove = 1.0f; // stopInsideGeometry's threshold; 1: off
 };
 
 } // namespace probekit::baker
