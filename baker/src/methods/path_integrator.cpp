@@ -29,6 +29,12 @@ constexpr float kProbeDirectionPdf = 1.0f / kFourPi;
 // thousand samples does not lose the small late terms to float rounding of one long sum.
 constexpr uint32_t kSamplesPerBlock = 64;
 
+// The scramble seed of the Sobol set keyed by `key` (a probe's, a batch's or a pixel's). The
+// inside-geometry check relies on it to cast exactly the directions the paths will take.
+constexpr uint32_t sobolSeed(uint64_t key) {
+    return uint32_t(key ^ (key >> 32));
+}
+
 } // namespace
 
 PathIntegrator::PathIntegrator(const Scene& scene, const RayTracer& tracer, PathConfig config,
@@ -102,10 +108,6 @@ bool PathIntegrator::insideGeometry(glm::vec3 position, uint64_t probe_key,
     // adaptive sampling's minimum batches, each its own sequence (bakeAdaptive, traceBatch).
     const bool adaptive = m_config.noiseTarget > 0.0f;
     const BatchPlan plan = adaptive ? batchPlan(m_config) : BatchPlan{m_config.samples, 1, 1};
-    const auto sobolSeed = [&](uint32_t group) {
-        const uint64_t key = adaptive ? hashKeys(probe_key, group) : probe_key;
-        return uint32_t(key ^ (key >> 32));
-    };
     const uint64_t n = uint64_t(plan.size) * plan.minBatches;
     // probeValidity's test on the count over all n; the count only grows, so once it holds (or
     // can no longer hold with every remaining ray a back face) the verdict is final.
@@ -114,7 +116,7 @@ bool PathIntegrator::insideGeometry(glm::vec3 position, uint64_t probe_key,
     };
     uint64_t back_faces = 0, cast = 0;
     for (uint32_t group = 0; group < plan.minBatches; ++group) {
-        const uint32_t sobol_seed = sobolSeed(group);
+        const uint32_t sobol_seed = sobolSeed(adaptive ? hashKeys(probe_key, group) : probe_key);
         for (uint32_t i = 0; i < plan.size; ++i, ++cast) {
             if (!(fraction(back_faces + (n - cast)) > m_insideAbove)) {
                 sample.rays = cast;
@@ -134,7 +136,7 @@ bool PathIntegrator::insideGeometry(glm::vec3 position, uint64_t probe_key,
 }
 
 ProbeSample PathIntegrator::bakeFixed(glm::vec3 position, uint64_t probe_key) const {
-    const auto sobol_seed = uint32_t(probe_key ^ (probe_key >> 32));
+    const auto sobol_seed = sobolSeed(probe_key);
     const uint32_t n = m_config.samples;
 
     ProbeSample result{};
@@ -161,7 +163,7 @@ ProbeSample PathIntegrator::bakeFixed(glm::vec3 position, uint64_t probe_key) co
 
 sh::ShRgb PathIntegrator::traceBatch(glm::vec3 position, uint64_t batch_key, uint32_t size,
                                      BatchTally& tally) const {
-    const auto sobol_seed = uint32_t(batch_key ^ (batch_key >> 32));
+    const auto sobol_seed = sobolSeed(batch_key);
     sh::ShRgb batch{}, block{};
     for (uint32_t i = 0; i < size; ++i) {
         const glm::vec3 dir = sphereDirection(scrambledSobol2d(i, sobol_seed));
@@ -333,7 +335,7 @@ PathIntegrator::SurfaceEstimate
 PathIntegrator::surfaceIrradiance(glm::vec3 position, glm::vec3 geometric_normal, glm::vec3 normal,
                                   uint32_t samples, uint64_t key) const {
     const ScopedFloatMode float_mode;
-    const auto sobol_seed = uint32_t(key ^ (key >> 32));
+    const auto sobol_seed = sobolSeed(key);
     const glm::vec3 offset_origin = RayTracer::offsetOrigin(position, geometric_normal, normal);
     SurfaceEstimate result;
     // Welford's running mean and sum of squared deviations, in double: a pixel may take many
