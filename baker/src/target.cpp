@@ -74,9 +74,10 @@ Result<PointBake> bakePoints(const Scene& scene, const BakeConfig& config,
     if (!tracer) {
         return tracer.error();
     }
-    PathConfig settings;
+    // The bake's own path settings (bounces, shadow rays), at a fixed `samples` directions.
+    PathConfig settings = config.path;
     settings.samples = samples;
-    settings.maxBounces = config.path.maxBounces;
+    settings.noiseTarget = 0.0f;
     PathIntegrator integrator(scene, *tracer.value(), settings, sh::Order::L2);
     // Points inside geometry are skipped by every comparison: their paths are not traced.
     integrator.stopInsideGeometry(config.backfaceThreshold);

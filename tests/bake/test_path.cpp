@@ -40,6 +40,7 @@
 #include "methods/path_integrator.hpp"
 #include "probekit/baker/bench_rays.hpp"
 #include "probekit/baker/scene.hpp"
+#include "probekit/baker/target.hpp"
 #include "probekit/formats/sh.hpp"
 #include "trace/light_sampler.hpp"
 #include "trace/ray_tracer.hpp"
@@ -1194,6 +1195,36 @@ TEST(PathTracerShadowRays, RouletteOnManyLightsIsUnbiasedAndBoundsTheRays) {
     EXPECT_EQ(e.rays, uint64_t(kSamples) * (1 + kLights));
     const double allowance = kSigmas * std::sqrt(kLights * 0.25 / kSamples);
     EXPECT_LE(double(r.rays) / kSamples, 1.0 + 4.0 + allowance);
+}
+
+// --verify's and --target-error's reference points follow the bake's path.shadow_rays: a
+// bake that asks for a shadow ray to every light gets a reference traced the same way.
+TEST(PathTracerShadowRays, ReferencePointsFollowTheBakesSetting) {
+    Scene scene = emptyScene();
+    addQuad(scene, {-8, 0, -8}, {-8, 0, 8}, {8, 0, 8}, {8, 0, -8},
+            addMaterial(scene, glm::vec3(0.5f), glm::vec3(0.0f))); // floor, facing +y
+    constexpr int kLights = 12;
+    for (int i = 0; i < kLights; ++i) {
+        PunctualLight light;
+        light.position = glm::vec3(-3.0f + 0.5f * float(i), 1.0f + 0.1f * float(i), 0.0f);
+        light.intensity = glm::vec3(1.0f);
+        scene.lights.push_back(light);
+    }
+    const std::vector<glm::vec3> points = {{0.0f, 0.5f, 1.0f}, {1.0f, 0.3f, -1.0f}};
+    constexpr uint32_t kSamples = 256;
+    BakeConfig every;
+    every.path.shadowRays = 0;
+    BakeConfig four;
+    four.path.shadowRays = 4;
+    const Result<PointBake> a = bakePoints(scene, every, points, kSamples, 0, 1);
+    const Result<PointBake> b = bakePoints(scene, four, points, kSamples, 0, 1);
+    ASSERT_TRUE(a.ok() && b.ok());
+    // Each path's first vertex (every direction below the horizon hits the floor) traces a
+    // shadow ray to each of the 12 lights with 0, about 4 with 4: at least 6 x 128 rays apart
+    // per point.
+    const uint64_t floor_hits = points.size() * kSamples / 2;
+    EXPECT_GE(a.value().rays, b.value().rays + 6 * floor_hits)
+        << a.value().rays << " rays with shadow_rays 0, " << b.value().rays << " with 4";
 }
 
 TEST(PathTracerDeterminism, SameInputsBitIdenticalAcrossThreads) {

@@ -18,10 +18,10 @@
 
 namespace probekit::baker {
 
-// Path-traced radiance SH (L2) at world points with config.path's bounces and `samples`
-// directions, the scene's lights and config.environment; `stream` selects independent sample
-// sequences (two streams give two independent estimates). valid[i] = kProbeInvalid for
-// points inside geometry (config.backfaceThreshold).
+// Path-traced radiance SH (L2) at world points with config.path's bounces and shadow rays,
+// `samples` directions (fixed sampling), the scene's lights and config.environment; `stream`
+// selects independent sample sequences (two streams give two independent estimates). valid[i] =
+// kProbeInvalid for points inside geometry (config.backfaceThreshold).
 struct PointBake {
     std::vector<sh::ShRgb> sh;
     std::vector<uint8_t> valid;
