@@ -566,6 +566,10 @@ const std::vector<Field<PathConfig>>& pathFields() {
         field("shadow_rays", &PathConfig::shadowRays, whole(0, 1u << 16), "",
               "expected shadow rays to punctual lights per path vertex (0: one to every light)",
               "--shadow-rays"),
+        field("roulette_weight", &PathConfig::rouletteWeight,
+              number(0.0, 1.0, true, false).because("a window of 0 never ends a path"), "",
+              "Russian roulette: a path below this throughput survives with probability "
+              "throughput / this"),
     };
     return fields;
 }

@@ -308,7 +308,8 @@ glm::vec3 PathIntegrator::incidentRadiance(glm::vec3 origin, glm::vec3 dir, floa
         continuation_pdf = glm::dot(normal, next_dir) * kInvPi;
         throughput *= albedo;
         if (vertex >= kRouletteStartBounce) {
-            const float survival = std::min(1.0f, maxComponent(throughput));
+            const float survival =
+                std::min(1.0f, maxComponent(throughput) / m_config.rouletteWeight);
             if (rng.uniform() >= survival) {
                 break;
             }

@@ -21,9 +21,11 @@
 //    maps (LightSampler). (b) and (c) are combined with the cosine-sampled continuation by
 //    multiple importance sampling with the power heuristic (Veach 1997, ch. 9). A constant
 //    environment is reached by the continuation only (cosine sampling is already ideal there).
-//  * Russian roulette on the continuation from the kRouletteStartBounce-th vertex on:
-//    survival probability min(1, max channel of the path throughput), the survivor divided
-//    by it (unbiased).
+//  * Russian roulette on the continuation from the kRouletteStartBounce-th vertex on, as a
+//    weight window: survival probability min(1, max channel of the path throughput /
+//    PathConfig::rouletteWeight), the survivor divided by it (unbiased). A path is never cut
+//    while its throughput is above the window, and a survivor's weight is the window's, so the
+//    roulette adds at most that much weight to any one path.
 //  * maxBounces caps the number of diffuse vertices; the emission reached after the last one is
 //    still counted, so maxBounces = 0 keeps only what the probe sees directly. The cap
 //    truncates energy: in a closed room of albedo a the missing fraction is a^(maxBounces+1).

@@ -168,6 +168,13 @@ struct PathConfig {
     // 0 = a shadow ray to every light. At 4 the generated arenas (32 lights) trace 6 times
     // fewer rays for the same seed-to-seed noise.
     uint32_t shadowRays = 4;
+    // Russian roulette's weight window (path_integrator.hpp): from the third vertex on, a path
+    // whose throughput (max channel) is below this survives with probability throughput /
+    // this and continues at this weight. 1 cuts paths as soon as any light is absorbed; at
+    // 0.25 a room lit only through a doorway (thin-wall's unlit room) has half the noise for
+    // 1.3x the time, and the generated arenas and the Cornell box are within 5% of the same
+    // noise per second.
+    float rouletteWeight = 0.25f;
 };
 
 // Method "vpl": instant radiosity (Keller 1997). Light paths leave the lights, a virtual point
