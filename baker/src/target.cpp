@@ -102,25 +102,41 @@ ErrorEstimate
 estimateError(const std::function<glm::vec3(glm::vec3 point, glm::vec3 normal)>& irradiance,
               const std::vector<glm::vec3>& points, const PointBake& ref_a,
               const PointBake& ref_b) {
-    ErrorEstimate e;
-    double error2 = 0.0, reference2 = 0.0, noise2 = 0.0, weight2 = 0.0;
+    struct Point {
+        double error2 = 0.0, reference2 = 0.0, noise2 = 0.0;
+    };
+    std::vector<Point> compared;
     for (size_t i = 0; i < points.size(); ++i) {
         if (ref_a.valid[i] != kProbeValid || ref_b.valid[i] != kProbeValid) {
             continue;
         }
         const sh::ShRgb reference = mean(ref_a.sh[i], ref_b.sh[i]);
-        double point2 = 0.0;
+        Point p;
         for (const glm::vec3& n : kAxisNormals) {
             const glm::vec3 r = sh::irradiance(reference, sh::Order::L2, n);
             const glm::vec3 d = irradiance(points[i], n) - r;
-            error2 += double(glm::dot(d, d));
-            point2 += double(glm::dot(r, r));
+            p.error2 += double(glm::dot(d, d));
+            p.reference2 += double(glm::dot(r, r));
         }
-        reference2 += point2;
-        weight2 += point2 * point2;
         // Var(mean of two) = E|a - b|^2 / 4.
-        noise2 += 0.25 * squaredAxisIrradianceDifference(ref_a.sh[i], ref_b.sh[i], sh::Order::L2);
-        ++e.points;
+        p.noise2 = 0.25 * squaredAxisIrradianceDifference(ref_a.sh[i], ref_b.sh[i], sh::Order::L2);
+        compared.push_back(p);
+    }
+    std::vector<double> squares;
+    for (const Point& p : compared) {
+        squares.push_back(p.reference2);
+    }
+    const double cap = brightPointCap(squares);
+    ErrorEstimate e;
+    e.points = compared.size();
+    double error2 = 0.0, reference2 = 0.0, noise2 = 0.0, weight2 = 0.0;
+    for (const Point& p : compared) {
+        const double s = brightPointWeight(p.reference2, cap);
+        e.cappedPoints += s < 1.0;
+        error2 += s * p.error2;
+        reference2 += s * p.reference2;
+        noise2 += s * p.noise2;
+        weight2 += s * p.reference2 * s * p.reference2;
     }
     if (reference2 > 0.0) {
         e.relRmseRaw = std::sqrt(error2 / reference2);
@@ -210,30 +226,44 @@ Result<double> runPilot(const Scene& scene, const BakeConfig& base,
     if (!b) {
         return b.error();
     }
-    double noise2 = 0.0, reference2 = 0.0, band2 = 0.0;
+    struct Point {
+        double noise2, reference2, band2;
+    };
+    std::vector<Point> pilot;
+    std::vector<double> squares;
     for (size_t i = 0; i < points.size(); ++i) {
         if (a.value().valid[i] != kProbeValid || b.value().valid[i] != kProbeValid) {
             continue;
         }
         const sh::ShRgb m = mean(a.value().sh[i], b.value().sh[i]);
-        const sh::ShRgb l1 = sh::truncateToL1(m);
         // One estimate's variance: E|a - b|^2 / 2.
-        noise2 +=
-            0.5 * squaredAxisIrradianceDifference(a.value().sh[i], b.value().sh[i], sh::Order::L2);
-        reference2 += squaredAxisIrradiance(m, sh::Order::L2);
-        band2 += squaredAxisIrradianceDifference(m, l1, sh::Order::L2);
-        ++choice.pilotPoints;
+        pilot.push_back(
+            {0.5 * squaredAxisIrradianceDifference(a.value().sh[i], b.value().sh[i], sh::Order::L2),
+             squaredAxisIrradiance(m, sh::Order::L2),
+             squaredAxisIrradianceDifference(m, sh::truncateToL1(m), sh::Order::L2)});
+        squares.push_back(pilot.back().reference2);
     }
+    // Noise and band 2 in the bounded measure --verify uses; the noise floor from the plain sum.
+    const double cap = brightPointCap(squares);
+    double noise2 = 0.0, reference2 = 0.0, band2 = 0.0, bounded2 = 0.0;
+    for (const Point& p : pilot) {
+        const double w = brightPointWeight(p.reference2, cap);
+        noise2 += w * p.noise2;
+        band2 += w * p.band2;
+        bounded2 += w * p.reference2;
+        reference2 += p.reference2;
+    }
+    choice.pilotPoints = uint32_t(pilot.size());
     if (choice.pilotPoints == 0 || !(reference2 > 0.0)) {
         return makeError(ErrorCode::InvalidArgument,
                          "target_error: no pilot point outside geometry receives light; the "
                          "error of a black scene is not defined");
     }
     choice.pilotSamples = kPilotSamples;
-    choice.pilotNoise = std::sqrt(noise2 / reference2);
+    choice.pilotNoise = std::sqrt(noise2 / bounded2);
     // Band 2's own share, less the noise it carries (band 2 is 5 of the 9 coefficients).
-    choice.band2 = std::sqrt(std::max(
-        0.0, band2 / reference2 - 5.0 / 9.0 * 0.5 * choice.pilotNoise * choice.pilotNoise));
+    choice.band2 = std::sqrt(
+        std::max(0.0, band2 / bounded2 - 5.0 / 9.0 * 0.5 * choice.pilotNoise * choice.pilotNoise));
     return reference2;
 }
 

@@ -29,6 +29,7 @@
 #include <gtest/gtest.h>
 
 #include "bake_test_support.hpp"
+#include "methods/irradiance_error.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/generators.hpp"
 #include "probekit/baker/target.hpp"
@@ -64,9 +65,6 @@ constexpr int kFacePoints = 6;
 // Analytic fields are recomputed here in double, the baker works in float: relative agreement
 // of disagreements (RMS of differences of values ~1) to 1e-3 covers float rounding by far.
 constexpr double kAnalyticRelTolerance = 1e-3;
-
-const glm::vec3 kAxisNormals[6] = {{1, 0, 0},  {-1, 0, 0}, {0, 1, 0},
-                                   {0, -1, 0}, {0, 0, 1},  {0, 0, -1}};
 
 double secondsSince(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -318,6 +316,24 @@ double analyticScale(const VolumeDesc& desc, const Field& f) {
     double sum2 = 0.0;
     for (double e2 : squares) {
         sum2 += std::min(e2, cap);
+    }
+    return std::sqrt(sum2 / double(squares.size()));
+}
+
+// The bounded measure's scale over the same probes (methods/irradiance_error.hpp): the RMS of
+// f with squares above the bright-point cap counted at the cap.
+double analyticBoundedScale(const VolumeDesc& desc, const Field& f) {
+    std::vector<double> squares;
+    for (const Brick& b : brick::uniformLayout(desc.grid.resolution(), 0).bricks) {
+        for (uint32_t k = 0; k < brick::kBrickProbeCount; ++k) {
+            const double e = f(glm::dvec3(probePosition(desc, b, localOf(k))));
+            squares.push_back(e * e);
+        }
+    }
+    const double cap = baker::brightPointCap(squares);
+    double sum2 = 0.0;
+    for (double e2 : squares) {
+        sum2 += baker::brightPointWeight(e2, cap) * e2;
     }
     return std::sqrt(sum2 / double(squares.size()));
 }
@@ -1040,14 +1056,17 @@ TEST(BrickedRefinement, KeepsExactlyTheOctantsAboveTheThreshold) {
             EXPECT_GT(d[o], middle) << "octant " << o;
         }
     }
-    // Unrefined, the predicted error is the RMS of the eight octants' disagreements; each finer
-    // brick takes its octant out of it (a level-1 brick's own error is not measured at max
-    // level 1: its prediction is its octant's disagreement over 4 or 2).
+    // Unrefined, the predicted error is the RMS of the eight octants' disagreements, in the
+    // bounded measure's scale (no point of this field is near the cap: the plain RMS of f, not
+    // the refinement's clamped one); each finer brick takes its octant out of it (a level-1
+    // brick's own error is not measured at max level 1: its prediction is its octant's
+    // disagreement over 4 or 2).
     double mean2 = 0.0;
     for (double x : d) {
         mean2 += x * x / 8.0;
     }
-    EXPECT_NEAR(above.predictedError, std::sqrt(mean2), kAnalyticRelTolerance * std::sqrt(mean2));
+    const double predicted = std::sqrt(mean2) * scale / analyticBoundedScale(desc, f);
+    EXPECT_NEAR(above.predictedError, predicted, kAnalyticRelTolerance * predicted);
     EXPECT_LT(half.predictedError, above.predictedError);
     EXPECT_LT(below.predictedError, half.predictedError);
 }

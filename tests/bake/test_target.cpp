@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "bake_test_support.hpp"
+#include "methods/irradiance_error.hpp"
 #include "probekit/baker/bake.hpp"
 #include "probekit/baker/generators.hpp"
 #include "probekit/baker/target.hpp"
@@ -69,10 +70,12 @@ TEST(TargetError, EstimateErrorMeasuresRelativeRmsAndSubtractsReferenceNoise) {
 }
 
 // Equal points all carry the reference: n effective points. One point 100x brighter than 15
-// others (a point near a light) carries nearly all of it: weights w = E^2 give
-// (10^4 + 15)^2 / (10^8 + 15) = 1.0030 effective points, and the relative error is then that
-// point's alone (10% there, exact elsewhere: sqrt(0.01 x 10^4 / (10^4 + 15)) = 0.09993).
-TEST(TargetError, EffectivePointsSayWhenAFewBrightPointsDecideTheError) {
+// others (a point near a light; 10^4 x their squared irradiance) counts as if it were at the
+// bright-point cap, kBrightPointCap^2 = 16 x the median's square: weights 16 and fifteen 1s give
+// 31^2 / (16^2 + 15) = 3.546 effective points, and its 10% error counts as 16 x 0.01 of 31
+// (sqrt(0.16 / 31) = 0.0718), not as nearly all of the measure (0.0999 unbounded). A point 3x
+// brighter is under the cap and counts in full.
+TEST(TargetError, BrightPointsCountAtTheCapWithTheirOwnRelativeError) {
     const size_t n = 16;
     std::vector<glm::vec3> points(n, glm::vec3(0.0f));
     points[0] = glm::vec3(1.0f, 0.0f, 0.0f);
@@ -83,13 +86,24 @@ TEST(TargetError, EffectivePointsSayWhenAFewBrightPointsDecideTheError) {
     EXPECT_NEAR(estimateError(exact_everywhere, points, even, even).effectivePoints, double(n),
                 kExact * double(n));
 
-    PointBake hot = even;
-    hot.sh[0] = constantRadiance(radiance * 100.0f);
-    auto off_at_the_hot_point = [=](glm::vec3 p, glm::vec3) { return p.x > 0.5f ? e * 110.0f : e; };
-    const ErrorEstimate est = estimateError(off_at_the_hot_point, points, hot, hot);
-    const double expected_points = (1e4 + 15.0) * (1e4 + 15.0) / (1e8 + 15.0);
-    EXPECT_NEAR(est.effectivePoints, expected_points, kExact * expected_points);
-    EXPECT_NEAR(est.relRmse, std::sqrt(0.01 * 1e4 / (1e4 + 15.0)), kExact);
+    auto hot_point = [&](float brighter) {
+        PointBake hot = even;
+        hot.sh[0] = constantRadiance(radiance * brighter);
+        auto off_there = [=](glm::vec3 p, glm::vec3) {
+            return p.x > 0.5f ? e * brighter * 1.1f : e;
+        };
+        return estimateError(off_there, points, hot, hot);
+    };
+    const double cap = kBrightPointCap * kBrightPointCap;
+    const ErrorEstimate far_over = hot_point(100.0f);
+    EXPECT_EQ(far_over.cappedPoints, 1u);
+    const double expected_points = (cap + 15.0) * (cap + 15.0) / (cap * cap + 15.0);
+    EXPECT_NEAR(far_over.effectivePoints, expected_points, kExact * expected_points);
+    EXPECT_NEAR(far_over.relRmse, std::sqrt(0.01 * cap / (cap + 15.0)), kExact);
+
+    const ErrorEstimate under = hot_point(3.0f);
+    EXPECT_EQ(under.cappedPoints, 0u);
+    EXPECT_NEAR(under.relRmse, std::sqrt(0.01 * 9.0 / (9.0 + 15.0)), kExact);
 }
 
 TEST(TargetError, BudgetSplitsTheTargetBetweenNoiseBandTwoAndInterpolation) {

@@ -97,12 +97,13 @@ expect 1 "small.bin: the header cannot be named .bin" -- \
 check "no output after a refused export" test ! -e small.bin
 # --verify skips points inside geometry and says how many of those asked for it used.
 # --target-error fails when its error is over 1.5x the target: without --verify the prediction
-# decides. On the Cornell box at 0.2 it over-predicts (0.60; --verify measures about 0.1), so
-# this bake fails and keeps its file, and the same bake with --verify (below) passes.
-expect 1 "target_error: the predicted error .* is more than 1.5 x the target 0.2 \\(interpolation" -- \
-    "$pk" bake cornell.gltf -o missed.pvol --target-error 0.2 --report missed.json
+# decides. The Cornell box's error does not fall below about 0.14 (docs/baking.md): at 0.05 the
+# prediction (0.108) says so, the bake fails and keeps its file; at 0.2 it passes, with --verify
+# (below) too.
+expect 1 "target_error: the predicted error .* is more than 1.5 x the target 0.05 \\(interpolation" -- \
+    "$pk" bake cornell.gltf -o missed.pvol --target-error 0.05 --report missed.json
 check "a missed target keeps its file" test -s missed.pvol
-expect 1 "the noise budget asked [0-9]+ directions per probe; the floor 128 is used" -- \
+expect 0 "the noise budget asked [0-9]+ directions per probe; the floor 128 is used" -- \
     "$pk" bake cornell.gltf -o missed2.pvol --target-error 0.2
 check "the report records the missed target" grep -q '"target_missed"' missed.json
 expect 0 "verify: measured error .*\([0-9]+ of 32 points valid" -- "$pk" bake cornell.gltf \
@@ -111,6 +112,8 @@ expect 0 "verify: measured error .*\([0-9]+ of 32 points valid" -- "$pk" bake co
 check "the report has both verify counts" grep -qE '"points_requested": 32' verify.json
 check "the report says how many points carry the verify reference" \
     grep -qE '"effective_points": [0-9]+\.?[0-9]*' verify.json
+check "the report says how many points are at the bright-point cap" \
+    grep -qE '"capped_points": [0-9]+' verify.json
 expect 1 "bricked.json: volumes\[0\].layout: bench compares dense grids" -- \
     "$pk" bench cornell.gltf --config bricked.json --out bench.csv --quick
 echo '{"volumes": [{"layout": "bricked", "levels": 5}]}' >badlevels.json

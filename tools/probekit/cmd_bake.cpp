@@ -515,24 +515,25 @@ Result<void> runVerify(const BakeOptionsCli& o, const baker::Scene& scene,
                         {"reference_noise", e.value().referenceNoise},
                         {"points", e.value().points},
                         {"points_requested", o.verifyPoints},
+                        {"capped_points", e.value().cappedPoints},
                         {"effective_points", e.value().effectivePoints},
                         {"samples", o.verifySamples},
                         {"seconds", seconds}};
     if (!o.quiet) {
         // Points inside geometry have no reference and are skipped (estimateError).
         std::printf("verify: measured error %.4f against a path reference (%zu of %u points "
-                    "valid, 2 x %u directions, reference noise %.4f subtracted; raw %.4f), "
-                    "%.2f s\n",
-                    e.value().relRmse, e.value().points, o.verifyPoints, o.verifySamples,
-                    e.value().referenceNoise, e.value().relRmseRaw, seconds);
+                    "valid, %zu at the bright-point cap, 2 x %u directions, reference noise "
+                    "%.4f subtracted; raw %.4f), %.2f s\n",
+                    e.value().relRmse, e.value().points, o.verifyPoints, e.value().cappedPoints,
+                    o.verifySamples, e.value().referenceNoise, e.value().relRmseRaw, seconds);
     }
-    // A handful of points near lights carrying the reference make the figure theirs alone.
+    // A handful of lit points carrying the reference make the figure theirs alone.
     if (e.value().points > 0 && e.value().effectivePoints < kFewEffectivePoints) {
         char text[400];
         std::snprintf(text, sizeof text,
-                      "--verify: the reference's squared irradiance sits on %.1f effective points "
-                      "of %zu (points near point lights, where irradiance grows as 1/r^2): the "
-                      "measured error is mostly theirs, not the whole volume's",
+                      "--verify: the reference's (capped) squared irradiance sits on %.1f "
+                      "effective points of %zu (most points are dark): the measured error is "
+                      "mostly theirs, not the whole volume's",
                       e.value().effectivePoints, e.value().points);
         report["warnings"].push_back(text);
         if (!o.quiet) {

@@ -31,6 +31,9 @@ struct Node {
     // RMS disagreement at the finer probes of each octant (the region of the finer brick
     // there), noise taken out.
     float octant[8] = {};
+    // The same in the bounded measure (irradiance_error.hpp), which the prediction reports.
+    float predictedBounded = 0.0f;
+    float octantBounded[8] = {};
     float gain = 0.0f;    // the parent's disagreement in this brick's octant: what it removes
     bool removed = false; // dropped by the budget
 };
@@ -257,6 +260,11 @@ double squaredDifference(const sh::ShRgb& a, const sh::ShRgb& b, sh::Order order
     return squaredAxisIrradianceDifference(a, b, order) / 18.0;
 }
 
+// Mean over the six axis normals and three channels of E^2.
+double meanSquaredIrradiance(const sh::ShRgb& a, sh::Order order) {
+    return squaredAxisIrradiance(a, order) / 18.0;
+}
+
 // Sum of squared trilinear weights at brick-local coordinates: how much of one probe's noise
 // variance reaches the interpolated value.
 double squaredWeightSum(glm::vec3 local) {
@@ -282,16 +290,34 @@ struct ErrorSum {
     }
 };
 
-// RMS disagreement per octant of a brick (the region of the finer brick there).
+// RMS disagreement per octant of a brick (the region of the finer brick there), relative to
+// the error scale (refinement compares it with refine_error) and in the bounded measure.
 struct Disagreement {
     float octant[8] = {};
+    float bounded[8] = {};
+};
+
+// The error's scales, from the level-0 probes (levelZeroScales). `scale` is the RMS irradiance
+// refinement measures against; the bounded measure weighs a point of mean squared irradiance
+// e2 by brightPointWeight(e2, cap) and divides by boundedScale2, the weighted mean square.
+struct ErrorScales {
+    float scale = 1.0f;
+    double cap = INFINITY;
+    double boundedScale2 = 1.0;
+    // Turns a squared difference already divided by scale^2, at a point of mean squared
+    // irradiance `e2`, into the bounded measure's.
+    double boundedFactor(double e2) const {
+        return brightPointWeight(e2, cap) * double(scale) * scale / boundedScale2;
+    }
 };
 
 // Accumulates one point of a brick's finer lattice (q in 0..6 per axis) into every octant
 // (finer brick region) it lies in: border points count for several.
 struct OctantSums {
     ErrorSum octants[8];
-    void add(glm::uvec3 q, double squared_error, double squared_noise) {
+    ErrorSum bounded[8];
+    // `bounded_factor` turns the two squares into the bounded measure's (ErrorScales).
+    void add(glm::uvec3 q, double squared_error, double squared_noise, double bounded_factor) {
         constexpr uint32_t half = kBrickCells; // 0..3 in the low octant, 3..6 in the high one
         for (uint32_t o = 0; o < 8; ++o) {
             const glm::uvec3 hi(o & 1, (o >> 1) & 1, o >> 2);
@@ -301,6 +327,7 @@ struct OctantSums {
             }
             if (inside) {
                 octants[o].add(squared_error, squared_noise);
+                bounded[o].add(squared_error * bounded_factor, squared_noise * bounded_factor);
             }
         }
     }
@@ -308,6 +335,7 @@ struct OctantSums {
         Disagreement d;
         for (int o = 0; o < 8; ++o) {
             d.octant[o] = octants[o].rms();
+            d.bounded[o] = bounded[o].rms();
         }
         return d;
     }
@@ -319,7 +347,7 @@ struct OctantSums {
 // dilated values, as the runtime will interpolate them.
 // `noise2` is the relative noise variance of one probe's irradiance (see bakeBricked).
 Disagreement measure(const Lattice& lattice, const Brick& b, uint32_t max_level, sh::Order order,
-                     float scale, double noise2) {
+                     const ErrorScales& scales, double noise2) {
     std::vector<sh::ShRgb> own(kBrickProbeCount);
     const std::vector<glm::uvec3> own_points = regionPoints(b, max_level, 1);
     for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
@@ -329,7 +357,7 @@ Disagreement measure(const Lattice& lattice, const Brick& b, uint32_t max_level,
     constexpr uint32_t n = kBrickCells * kSub + 1;
     const std::vector<glm::uvec3> points = regionPoints(b, max_level, kSub);
     OctantSums sums;
-    const double inv_scale2 = 1.0 / (double(scale) * scale);
+    const double inv_scale2 = 1.0 / (double(scales.scale) * scales.scale);
     for (uint32_t z = 0; z < n; ++z) {
         for (uint32_t y = 0; y < n; ++y) {
             for (uint32_t x = 0; x < n; ++x) {
@@ -342,7 +370,8 @@ Disagreement measure(const Lattice& lattice, const Brick& b, uint32_t max_level,
                 const double e2 =
                     squaredDifference(brick::interpolate(own, local), lattice.sh(u), order) *
                     inv_scale2;
-                sums.add(q, e2, noise2 * (1.0 + squaredWeightSum(local)));
+                sums.add(q, e2, noise2 * (1.0 + squaredWeightSum(local)),
+                         scales.boundedFactor(meanSquaredIrradiance(lattice.sh(u), order)));
             }
         }
     }
@@ -405,40 +434,42 @@ private:
     std::vector<Level> m_levels;
 };
 
-// RMS over valid points, normals and channels of the irradiance, the brightest 0.1% of points
-// clamped to the 99.9th percentile: the error scale. Unclamped, the RMS of a field with point
-// lights is set by whichever lattice point lies closest to a light (1/r^2 irradiance has no
-// finite mean square near one): on the closed arena one probe at 9,990 W/m^2 made it 63 W/m^2
-// against 1.5 for the rest of the level, and refinement there stopped seeing any error.
-float irradianceScale(const Lattice& lattice, const std::vector<glm::uvec3>& points,
-                      sh::Order order) {
+// The error scales over the level-0 lattice points. `scale`: RMS over valid points, normals
+// and channels of the irradiance, the brightest 0.1% of points clamped to the 99.9th
+// percentile. Unclamped, the RMS of a field with point lights is set by whichever lattice
+// point lies closest to a light (1/r^2 irradiance has no finite mean square near one): on the
+// closed arena one probe at 9,990 W/m^2 made it 63 W/m^2 against 1.5 for the rest of the
+// level, and refinement there stopped seeing any error. The bounded measure's cap and mean
+// square follow irradiance_error.hpp, as --verify computes them.
+ErrorScales levelZeroScales(const Lattice& lattice, const std::vector<glm::uvec3>& points,
+                            sh::Order order) {
     std::vector<double> squares; // per point: mean over normals and channels of E^2
     squares.reserve(points.size());
     for (const glm::uvec3& u : points) {
-        if (!lattice.valid(u)) {
-            continue;
+        if (lattice.valid(u)) {
+            squares.push_back(meanSquaredIrradiance(lattice.sh(u), order));
         }
-        double sum2 = 0.0;
-        for (const glm::vec3& n : kAxisNormals) {
-            const glm::vec3 e = sh::irradiance(lattice.sh(u), order, n);
-            sum2 += double(glm::dot(e, e));
-        }
-        squares.push_back(sum2 / (3.0 * double(std::size(kAxisNormals))));
     }
+    ErrorScales scales;
     if (squares.empty()) {
-        return 1.0f;
+        return scales;
     }
     constexpr double kClampQuantile = 0.999;
     std::vector<double> sorted = squares;
     const auto at = sorted.begin() + std::ptrdiff_t(kClampQuantile * double(sorted.size() - 1));
     std::nth_element(sorted.begin(), at, sorted.end());
-    const double cap = *at;
-    double sum = 0.0;
+    const double clamp = *at;
+    scales.cap = brightPointCap(squares);
+    double sum = 0.0, bounded = 0.0;
     for (double v : squares) {
-        sum += std::min(v, cap);
+        sum += std::min(v, clamp);
+        bounded += brightPointWeight(v, scales.cap) * v;
     }
     const double rms = std::sqrt(sum / double(squares.size()));
-    return rms > 0.0 ? float(rms) : 1.0f;
+    scales.scale = rms > 0.0 ? float(rms) : 1.0f;
+    bounded /= double(squares.size());
+    scales.boundedScale2 = bounded > 0.0 ? bounded : double(scales.scale) * scales.scale;
+    return scales;
 }
 
 // Fills invalid lattice points from the valid ones nearest on the lattice: the mean of the
@@ -527,7 +558,9 @@ public:
     // RMS disagreement (relative to `scale`) between the brick's interpolation of its own
     // direct light and the direct light at the finer lattice points of its region, in all and
     // per octant.
-    Disagreement disagreement(const Brick& b, uint32_t max_level, float scale) {
+    // The bounded measure weighs points by their direct light alone (a lower bound of their
+    // irradiance): the finer probes are not baked yet.
+    Disagreement disagreement(const Brick& b, uint32_t max_level, const ErrorScales& scales) {
         if (m_scene.lights.empty() || m_tracer == nullptr) {
             return {};
         }
@@ -544,11 +577,12 @@ public:
             if ((q.x % 2) + (q.y % 2) + (q.z % 2) == 0) {
                 continue;
             }
-            sums.add(q,
-                     squaredDifference(brick::interpolate(own, glm::vec3(q) * 0.5f), at(points[k]),
-                                       m_order) /
-                         (double(scale) * scale),
-                     0.0);
+            const sh::ShRgb& fine = at(points[k]);
+            sums.add(
+                q,
+                squaredDifference(brick::interpolate(own, glm::vec3(q) * 0.5f), fine, m_order) /
+                    (double(scales.scale) * scales.scale),
+                0.0, scales.boundedFactor(meanSquaredIrradiance(fine, m_order)));
         }
         return sums.result();
     }
@@ -593,7 +627,7 @@ struct BrickedBake {
     Lattice lattice;
     GeometryReach reach;
     std::vector<Node> nodes; // level 0 first, then each level's finer bricks as they are kept
-    float scale = 1.0f;      // the error scale (irradianceScale of the level-0 probes)
+    ErrorScales scales;      // the error scales (levelZeroScales)
     double noise2 = 0.0;     // one probe's relative noise variance (measureNoise)
     BrickedOutcome out;
 };
@@ -627,7 +661,7 @@ std::vector<glm::uvec3> bakeLevelZero(BrickedBake& b) {
     }
     b.lattice.ensure(wanted);
     dilateBaked(b);
-    b.scale = irradianceScale(b.lattice, wanted, b.order);
+    b.scales = levelZeroScales(b.lattice, wanted, b.order);
     return wanted;
 }
 
@@ -662,38 +696,63 @@ void measureNoise(BrickedBake& b, const std::vector<glm::uvec3>& level_zero) {
     for (size_t i = 0; i < picked.size(); ++i) {
         sum += squaredDifference(again[i], lattice.sh(picked[i]), b.order);
     }
-    b.noise2 =
-        picked.empty() ? 0.0 : 0.5 * sum / double(picked.size()) / (double(b.scale) * b.scale);
+    b.noise2 = picked.empty()
+                   ? 0.0
+                   : 0.5 * sum / double(picked.size()) / (double(b.scales.scale) * b.scales.scale);
 }
 
-// Level-0 prediction: how far the brick's probes stray from its 8 corners' interpolation
-// (noise taken out), scaled by (1/3)^2 for the brick's own 3x finer spacing.
-void predictLevelZero(BrickedBake& b) {
+// A brick's own prediction: how far its probes stray from its 8 corners' interpolation (noise
+// taken out), scaled by (1/3)^2 for its own 3x finer spacing in smooth light, 1/3 near
+// surfaces. Sets `predicted` and `predictedBounded`.
+void predictFromCorners(const BrickedBake& b, Node& n) {
     const Lattice& lattice = b.lattice;
+    const auto pts = regionPoints(n.brick, b.maxLevel, 1);
+    std::vector<sh::ShRgb> corner_brick(kBrickProbeCount);
+    for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
+        // A brick whose probes are its corners' values spread over 0..3: interpolating it at
+        // local / 3 is the corner lattice's interpolation.
+        const glm::uvec3 l(k % 4, (k / 4) % 4, k / 16);
+        const glm::uvec3 c = glm::min(l, glm::uvec3(1)) * 3u;
+        corner_brick[k] = lattice.sh(pts[c.x + 4 * (c.y + 4 * c.z)]);
+    }
+    ErrorSum sum, bounded;
+    for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
+        const glm::uvec3 l(k % 4, (k / 4) % 4, k / 16);
+        if (!lattice.valid(pts[k]) || glm::all(glm::equal(l % 3u, glm::uvec3(0)))) {
+            continue;
+        }
+        const glm::vec3 t = glm::vec3(l) / 3.0f; // position in the corner lattice
+        const sh::ShRgb& fine = lattice.sh(pts[k]);
+        const double e2 = squaredDifference(brick::interpolate(corner_brick, t), fine, b.order) /
+                          (double(b.scales.scale) * b.scales.scale);
+        const double noise2 = b.noise2 * (1.0 + squaredWeightSum(t));
+        sum.add(e2, noise2);
+        const double f = b.scales.boundedFactor(meanSquaredIrradiance(fine, b.order));
+        bounded.add(e2 * f, noise2 * f);
+    }
+    const float spacing = b.reach.near(n.brick) ? 3.0f : 9.0f;
+    n.predicted = sum.rms() / spacing;
+    n.predictedBounded = bounded.rms() / spacing;
+}
+
+// Level 0's prediction, before any brick is tested.
+void predictLevelZero(BrickedBake& b) {
     for (Node& n : b.nodes) {
-        const auto pts = regionPoints(n.brick, b.maxLevel, 1);
-        std::vector<sh::ShRgb> corner_brick(kBrickProbeCount);
-        for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
-            // A brick whose probes are its corners' values spread over 0..3: interpolating it
-            // at local / 3 is the corner lattice's interpolation.
-            const glm::uvec3 l(k % 4, (k / 4) % 4, k / 16);
-            const glm::uvec3 c = glm::min(l, glm::uvec3(1)) * 3u;
-            corner_brick[k] = lattice.sh(pts[c.x + 4 * (c.y + 4 * c.z)]);
+        predictFromCorners(b, n);
+    }
+}
+
+// After refinement every stored brick's probes are baked: an untested one (the deepest level,
+// or below the threshold) is predicted from its own probes rather than from its parent's
+// disagreement over the decay, which assumes the error keeps falling at the rate of smooth
+// light or of contact shading (near the Cornell box's ceiling light the level-3 bricks measure
+// a small part of what their parents' disagreement over 2 predicted).
+void predictUntestedFromCorners(BrickedBake& b, const std::vector<int>& stored) {
+    for (int i : stored) {
+        Node& n = b.nodes[size_t(i)];
+        if (!n.tested && n.brick.level > 0) {
+            predictFromCorners(b, n);
         }
-        ErrorSum sum;
-        for (uint32_t k = 0; k < kBrickProbeCount; ++k) {
-            const glm::uvec3 l(k % 4, (k / 4) % 4, k / 16);
-            if (!lattice.valid(pts[k]) || glm::all(glm::equal(l % 3u, glm::uvec3(0)))) {
-                continue;
-            }
-            const glm::vec3 t = glm::vec3(l) / 3.0f; // position in the corner lattice
-            const double e2 = squaredDifference(brick::interpolate(corner_brick, t),
-                                                lattice.sh(pts[k]), b.order) /
-                              (double(b.scale) * b.scale);
-            sum.add(e2, b.noise2 * (1.0 + squaredWeightSum(t)));
-        }
-        // (1/3)^2 for the brick's 3x finer spacing in smooth light, 1/3 near surfaces.
-        n.predicted = sum.rms() / (b.reach.near(n.brick) ? 3.0f : 9.0f);
     }
 }
 
@@ -720,7 +779,7 @@ Candidates chooseCandidates(BrickedBake& b, DirectField& direct, const std::vect
         if (insideGeometry(b.lattice, n.brick, b.maxLevel)) {
             continue; // inside geometry: never spent on
         }
-        const Disagreement from_direct = direct.disagreement(n.brick, b.maxLevel, b.scale);
+        const Disagreement from_direct = direct.disagreement(n.brick, b.maxLevel, b.scales);
         const float most_direct =
             *std::max_element(std::begin(from_direct.octant), std::end(from_direct.octant));
         const float priority = std::max(n.predicted, most_direct);
@@ -766,13 +825,14 @@ std::vector<int> keepFinerBricks(BrickedBake& b, const Candidates& candidates, u
     for (size_t c = 0; c < candidates.nodes.size(); ++c) {
         const int i = candidates.nodes[c];
         const Disagreement d =
-            measure(b.lattice, nodes[size_t(i)].brick, b.maxLevel, b.order, b.scale, b.noise2);
+            measure(b.lattice, nodes[size_t(i)].brick, b.maxLevel, b.order, b.scales, b.noise2);
         // The full bake's disagreement decides; the exact direct-light one is a floor
         // under it (noise subtraction can only hide an edge the pre-pass sees exactly).
         Node& n = nodes[size_t(i)];
         n.tested = true;
         for (int o = 0; o < 8; ++o) {
             n.octant[o] = std::max(d.octant[o], candidates.direct[c].octant[o]);
+            n.octantBounded[o] = std::max(d.bounded[o], candidates.direct[c].bounded[o]);
         }
         // Error falls with the square of the spacing in smooth light, but near surfaces
         // (contact shading, occlusion) only about linearly.
@@ -792,6 +852,7 @@ std::vector<int> keepFinerBricks(BrickedBake& b, const Candidates& candidates, u
             child.parent = i;
             child.gain = nodes[size_t(i)].octant[o];
             child.predicted = child.gain / decay;
+            child.predictedBounded = nodes[size_t(i)].octantBounded[o] / decay;
             nodes[size_t(i)].children[o] = int(nodes.size());
             next.push_back(int(nodes.size()));
             nodes.push_back(child);
@@ -915,10 +976,10 @@ std::vector<int> storedBricks(const std::vector<Node>& nodes) {
     return stored;
 }
 
-// Predicted interpolation error, over the part of each stored brick that shows: where it
-// was tested, each octant without a finer brick at its measured disagreement; otherwise the
-// whole brick at its prediction. Weights are volumes times the brick's share of valid
-// probes (error is only ever measured in open space).
+// Predicted interpolation error in the bounded measure (--verify's), over the part of each
+// stored brick that shows: where it was tested, each octant without a finer brick at its
+// measured disagreement; otherwise the whole brick at its prediction. Weights are volumes
+// times the brick's share of valid probes (error is only ever measured in open space).
 double predictedError(const BrickedBake& b, const std::vector<int>& stored) {
     const std::vector<Node>& nodes = b.nodes;
     double sum_w = 0.0, sum_e2 = 0.0;
@@ -932,13 +993,13 @@ double predictedError(const BrickedBake& b, const std::vector<int>& stored) {
         const double w = std::ldexp(valid_share, -3 * int(n.brick.level));
         if (!n.tested) {
             sum_w += w;
-            sum_e2 += w * double(n.predicted) * n.predicted;
+            sum_e2 += w * double(n.predictedBounded) * n.predictedBounded;
             continue;
         }
         for (int o = 0; o < 8; ++o) {
             if (n.children[o] < 0 || nodes[size_t(n.children[o])].removed) {
                 sum_w += w / 8.0;
-                sum_e2 += w / 8.0 * double(n.octant[o]) * n.octant[o];
+                sum_e2 += w / 8.0 * double(n.octantBounded[o]) * n.octantBounded[o];
             }
         }
     }
@@ -1031,6 +1092,7 @@ Result<BrickedOutcome> bakeBricked(const Scene& scene, const VolumeDesc& desc, s
         return used_level.error();
     }
     const std::vector<int> stored = storedBricks(b.nodes);
+    predictUntestedFromCorners(b, stored);
     b.out.predictedError = predictedError(b, stored);
     const std::vector<uint64_t> used_keys = layOutBricks(b, stored, used_level.value());
     const std::vector<uint8_t> original_valid = b.lattice.allValid();

@@ -38,16 +38,18 @@ std::vector<glm::vec3> volumeSamplePoints(const std::vector<VolumeDesc>& volumes
 // The error measure of --target-error and --verify: relative RMS irradiance error,
 // sqrt(sum |E - E_ref|^2 / sum |E_ref|^2) over points, the six axis normals and the three
 // channels (irradiance from radiance SH, sh::irradiance).
+// The bounded relative RMS irradiance error (methods/irradiance_error.hpp): a point brighter
+// than kBrightPointCap times the median point counts as if it were that bright.
 struct ErrorEstimate {
     double relRmse = 0.0;        // against the mean of the two reference estimates, with the
                                  // reference's own noise subtracted (0 if noise explains all)
     double relRmseRaw = 0.0;     // without the subtraction
     double referenceNoise = 0.0; // RMS noise of the reference mean, same units
     size_t points = 0;           // valid points compared
-    // How many points carry the reference's squared irradiance (Kish's effective sample size
-    // of the weights |E_ref|^2: (sum w)^2 / sum w^2). Near a point light irradiance grows as
-    // 1/r^2, and one or two points close to lights can carry nearly all of it: the relative
-    // RMS is then those points' error, whatever the rest of the volume does.
+    size_t cappedPoints = 0;     // of them, those above the bright-point cap
+    // How many points carry the reference's weighted squared irradiance (Kish's effective
+    // sample size of the weights w = s |E_ref|^2, s the bright-point weight: (sum w)^2 /
+    // sum w^2). The cap keeps it from collapsing to the one or two points next to a light.
     double effectivePoints = 0.0;
 };
 // `irradiance(point, normal)` is what the baked volumes give (e.g. runtime::VolumeSet
