@@ -85,6 +85,7 @@ Result<PointBake> bakePoints(const Scene& scene, const BakeConfig& config,
     out.sh.resize(points.size());
     out.valid.resize(points.size());
     std::atomic<uint64_t> rays{0};
+    const auto start = std::chrono::steady_clock::now();
     parallelFor(points.size(), threads, 1, [&](size_t begin, size_t end) {
         for (size_t i = begin; i < end; ++i) {
             const ProbeSample s =
@@ -95,6 +96,7 @@ Result<PointBake> bakePoints(const Scene& scene, const BakeConfig& config,
         }
     });
     out.rays = rays.load();
+    out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return out;
 }
 
@@ -260,6 +262,12 @@ Result<double> runPilot(const Scene& scene, const BakeConfig& base,
                          "error of a black scene is not defined");
     }
     choice.pilotSamples = kPilotSamples;
+    choice.pilotSecondsPerPoint =
+        (a.value().seconds + b.value().seconds) / (2.0 * double(points.size()));
+    const double floor2 = reference2 / double(pilot.size());
+    for (const Point& p : pilot) {
+        choice.pilotRelativeNoise2.push_back(p.noise2 / std::max(p.reference2, floor2));
+    }
     choice.pilotNoise = std::sqrt(noise2 / bounded2);
     // Band 2's own share, less the noise it carries (band 2 is 5 of the 9 coefficients).
     choice.band2 = std::sqrt(
@@ -311,6 +319,25 @@ void allocateErrorBudget(Method method, double target, double reference2, Target
     }
 }
 
+// Level 0's probes and seconds (TargetChoice's plan). Adaptive sampling traces a probe until
+// its relative noise meets probeNoiseTarget: at N directions a point's noise variance is its
+// 256-direction one times 256 / N.
+void planLevelZero(TargetChoice& choice) {
+    for (const VolumeConfig& v : choice.config.volumes) {
+        const glm::uvec3 points = *v.resolution * brick::kBrickCells + 1u;
+        choice.levelZeroProbes += uint64_t(points.x) * points.y * points.z;
+    }
+    double directions = 0.0;
+    const double target2 = choice.probeNoiseTarget * choice.probeNoiseTarget;
+    for (double rel2 : choice.pilotRelativeNoise2) {
+        directions += std::clamp(double(kPilotSamples) * rel2 / target2, double(choice.minSamples),
+                                 double(kTargetMaxSamples));
+    }
+    choice.expectedDirections = directions / double(choice.pilotRelativeNoise2.size());
+    choice.levelZeroSeconds = double(choice.levelZeroProbes) * choice.pilotSecondsPerPoint *
+                              choice.expectedDirections / double(kPilotSamples);
+}
+
 } // namespace
 
 Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, double target,
@@ -334,6 +361,7 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
         return reference2.error();
     }
     allocateErrorBudget(base.method, target, reference2.value(), choice);
+    planLevelZero(choice);
     choice.pilotSeconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return choice;

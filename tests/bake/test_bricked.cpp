@@ -850,6 +850,10 @@ TEST(BrickedBake, UniformSkyDoesNotRefine) {
                 << "normal " << n.x << "," << n.y << "," << n.z << " channel " << ch;
         }
     }
+    // The field is constant: all the probes' disagreement is noise (sigma = 4.03 L / sqrt(64)
+    // per probe, 0.16 of E = pi L), and the predicted error takes it out (0.0005 when
+    // written). Left in, it would read about 0.16 x sqrt(1 + 8/27) = 0.18.
+    EXPECT_LT(st.predictedInterpolationError, 0.02);
     std::printf("[uniform sky] candidates %llu, predicted error %.3g, worst mean E error %.3g "
                 "iid standard errors; %.2f s\n",
                 (unsigned long long)st.refineCandidates, st.predictedInterpolationError, worst,

@@ -283,6 +283,14 @@ void printChoice(const baker::TargetChoice& c) {
     std::printf("  adaptive sampling: each probe traced to noise %.3g of its irradiance (of %.3g "
                 "W/m^2, the pilot's RMS, where darker), %u to %u directions\n",
                 c.probeNoiseTarget, c.noiseFloor, c.minSamples, baker::kTargetMaxSamples);
+    if (c.config.method == baker::Method::Path) {
+        std::printf("  plan: level 0 has %llu probes at about %.0f directions each, about %.0f s "
+                    "at the pilot's speed; refinement adds finer probes where the light changes, "
+                    "within max_memory_mb = %llu MiB\n",
+                    static_cast<unsigned long long>(c.levelZeroProbes), c.expectedDirections,
+                    c.levelZeroSeconds,
+                    static_cast<unsigned long long>(c.config.maxMemoryBytes >> 20));
+    }
 }
 
 void printMethod(const BakeOptionsCli& o, const baker::Scene& scene,

@@ -304,10 +304,23 @@ struct ErrorScales {
     float scale = 1.0f;
     double cap = INFINITY;
     double boundedScale2 = 1.0;
+    // The bounded measure's noise model: one probe's noise variance is relNoise2 times its
+    // mean squared irradiance, or times scale^2 where darker (measureNoise). Monte Carlo noise
+    // grows with the light, and adaptive sampling holds each probe to a noise relative to its
+    // own irradiance: one variance for the whole volume under-subtracts it where the light is
+    // bright and over-subtracts it where dark.
+    double relNoise2 = 0.0;
     // Turns a squared difference already divided by scale^2, at a point of mean squared
     // irradiance `e2`, into the bounded measure's.
     double boundedFactor(double e2) const {
         return brightPointWeight(e2, cap) * double(scale) * scale / boundedScale2;
+    }
+    // The bounded measure's expected squared noise of a difference at a point of mean squared
+    // irradiance `e2` whose coarse side interpolates with squared weights summing to `weights2`
+    // (probes of about the point's own irradiance).
+    double boundedNoise(double e2, double weights2) const {
+        return brightPointWeight(e2, cap) * (1.0 + weights2) * relNoise2 *
+               std::max(e2, double(scale) * scale) / boundedScale2;
     }
 };
 
@@ -316,8 +329,10 @@ struct ErrorScales {
 struct OctantSums {
     ErrorSum octants[8];
     ErrorSum bounded[8];
-    // `bounded_factor` turns the two squares into the bounded measure's (ErrorScales).
-    void add(glm::uvec3 q, double squared_error, double squared_noise, double bounded_factor) {
+    // `bounded_factor` turns the error into the bounded measure's, whose noise is
+    // `bounded_noise` (ErrorScales).
+    void add(glm::uvec3 q, double squared_error, double squared_noise, double bounded_factor,
+             double bounded_noise) {
         constexpr uint32_t half = kBrickCells; // 0..3 in the low octant, 3..6 in the high one
         for (uint32_t o = 0; o < 8; ++o) {
             const glm::uvec3 hi(o & 1, (o >> 1) & 1, o >> 2);
@@ -327,7 +342,7 @@ struct OctantSums {
             }
             if (inside) {
                 octants[o].add(squared_error, squared_noise);
-                bounded[o].add(squared_error * bounded_factor, squared_noise * bounded_factor);
+                bounded[o].add(squared_error * bounded_factor, bounded_noise);
             }
         }
     }
@@ -370,8 +385,10 @@ Disagreement measure(const Lattice& lattice, const Brick& b, uint32_t max_level,
                 const double e2 =
                     squaredDifference(brick::interpolate(own, local), lattice.sh(u), order) *
                     inv_scale2;
+                const double fine2 = meanSquaredIrradiance(lattice.sh(u), order);
                 sums.add(q, e2, noise2 * (1.0 + squaredWeightSum(local)),
-                         scales.boundedFactor(meanSquaredIrradiance(lattice.sh(u), order)));
+                         scales.boundedFactor(fine2),
+                         scales.boundedNoise(fine2, squaredWeightSum(local)));
             }
         }
     }
@@ -582,7 +599,7 @@ public:
                 q,
                 squaredDifference(brick::interpolate(own, glm::vec3(q) * 0.5f), fine, m_order) /
                     (double(scales.scale) * scales.scale),
-                0.0, scales.boundedFactor(meanSquaredIrradiance(fine, m_order)));
+                0.0, scales.boundedFactor(meanSquaredIrradiance(fine, m_order)), 0.0);
         }
         return sums.result();
     }
@@ -692,10 +709,14 @@ void measureNoise(BrickedBake& b, const std::vector<glm::uvec3>& level_zero) {
     std::vector<sh::ShRgb> again(picked.size());
     std::vector<uint8_t> again_valid(picked.size());
     b.bake(positions, ids, again, again_valid);
-    double sum = 0.0;
+    double sum = 0.0, relative = 0.0;
+    const double floor2 = double(b.scales.scale) * b.scales.scale;
     for (size_t i = 0; i < picked.size(); ++i) {
-        sum += squaredDifference(again[i], lattice.sh(picked[i]), b.order);
+        const double d2 = squaredDifference(again[i], lattice.sh(picked[i]), b.order);
+        sum += d2;
+        relative += d2 / std::max(meanSquaredIrradiance(lattice.sh(picked[i]), b.order), floor2);
     }
+    b.scales.relNoise2 = picked.empty() ? 0.0 : 0.5 * relative / double(picked.size());
     b.noise2 = picked.empty()
                    ? 0.0
                    : 0.5 * sum / double(picked.size()) / (double(b.scales.scale) * b.scales.scale);
@@ -727,8 +748,9 @@ void predictFromCorners(const BrickedBake& b, Node& n) {
                           (double(b.scales.scale) * b.scales.scale);
         const double noise2 = b.noise2 * (1.0 + squaredWeightSum(t));
         sum.add(e2, noise2);
-        const double f = b.scales.boundedFactor(meanSquaredIrradiance(fine, b.order));
-        bounded.add(e2 * f, noise2 * f);
+        const double fine2 = meanSquaredIrradiance(fine, b.order);
+        bounded.add(e2 * b.scales.boundedFactor(fine2),
+                    b.scales.boundedNoise(fine2, squaredWeightSum(t)));
     }
     const float spacing = b.reach.near(n.brick) ? 3.0f : 9.0f;
     n.predicted = sum.rms() / spacing;

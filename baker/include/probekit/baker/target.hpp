@@ -26,6 +26,7 @@ struct PointBake {
     std::vector<sh::ShRgb> sh;
     std::vector<uint8_t> valid;
     uint64_t rays = 0;
+    double seconds = 0.0; // tracing only (not the scene's BVH build)
 };
 Result<PointBake> bakePoints(const Scene& scene, const BakeConfig& config,
                              const std::vector<glm::vec3>& points, uint32_t samples,
@@ -80,6 +81,17 @@ struct TargetChoice {
     double predictedNoise = 0.0;      // noise after interpolation at `samples`
     double interpolationBudget = 0.0; // refine_error given to the bricked volumes
     double pilotSeconds = 0.0;
+    // The plan printed before the bake. Level 0's lattice probes, the directions adaptive
+    // sampling is expected to give one (the mean over the pilot's points of what each point's
+    // noise asks, within minSamples..kTargetMaxSamples), and level 0's seconds at the pilot's
+    // tracing seconds per point and direction. Refinement comes on top, where light changes.
+    uint64_t levelZeroProbes = 0;
+    double expectedDirections = 0.0;
+    double levelZeroSeconds = 0.0;
+    // Per valid pilot point: one 256-direction estimate's noise variance relative to its
+    // irradiance (or to the noise floor where darker), what adaptive sampling compares.
+    std::vector<double> pilotRelativeNoise2;
+    double pilotSecondsPerPoint = 0.0; // tracing, per pilot point and estimate
 };
 // The error budget of chooseSettings, as fractions of the target t.
 constexpr double kTargetTolerance = 1.5; // probekit bake fails when predicted or measured is more
