@@ -212,12 +212,20 @@ void chooseLevel0Resolution(const std::vector<VolumeDesc>& descs, double target,
 
 constexpr uint32_t kPilotSamples = 256;
 
+// What the pilot measured that the budget and the plan use after it.
+struct PilotFigures {
+    double reference2 = 0.0; // squared reference irradiance summed over the valid points
+    // Per valid point: one 256-direction estimate's noise variance relative to its irradiance
+    // (or to the noise floor where darker), what adaptive sampling compares.
+    std::vector<double> relativeNoise2;
+    double secondsPerPoint = 0.0; // tracing, per point and estimate
+};
+
 // Pilot: two independent estimates at 64 points give the noise of one estimate and band 2's
-// share of the irradiance (choice.pilotNoise, band2, pilotPoints); returns the pilot's squared
-// reference irradiance summed over its valid points.
-Result<double> runPilot(const Scene& scene, const BakeConfig& base,
-                        const std::vector<VolumeDesc>& descs, uint32_t threads,
-                        TargetChoice& choice) {
+// share of the irradiance (choice.pilotNoise, band2, pilotPoints).
+Result<PilotFigures> runPilot(const Scene& scene, const BakeConfig& base,
+                              const std::vector<VolumeDesc>& descs, uint32_t threads,
+                              TargetChoice& choice) {
     constexpr size_t kPilotPoints = 64;
     const std::vector<glm::vec3> points = volumeSamplePoints(descs, kPilotPoints);
     Result<PointBake> a = bakePoints(scene, base, points, kPilotSamples, 11, threads);
@@ -262,17 +270,19 @@ Result<double> runPilot(const Scene& scene, const BakeConfig& base,
                          "error of a black scene is not defined");
     }
     choice.pilotSamples = kPilotSamples;
-    choice.pilotSecondsPerPoint =
+    PilotFigures figures;
+    figures.reference2 = reference2;
+    figures.secondsPerPoint =
         (a.value().seconds + b.value().seconds) / (2.0 * double(points.size()));
     const double floor2 = reference2 / double(pilot.size());
     for (const Point& p : pilot) {
-        choice.pilotRelativeNoise2.push_back(p.noise2 / std::max(p.reference2, floor2));
+        figures.relativeNoise2.push_back(p.noise2 / std::max(p.reference2, floor2));
     }
     choice.pilotNoise = std::sqrt(noise2 / bounded2);
     // Band 2's own share, less the noise it carries (band 2 is 5 of the 9 coefficients).
     choice.band2 = std::sqrt(
         std::max(0.0, band2 / bounded2 - 5.0 / 9.0 * 0.5 * choice.pilotNoise * choice.pilotNoise));
-    return reference2;
+    return figures;
 }
 
 // Splits the target between noise, SH order and interpolation from the pilot's figures, and
@@ -322,19 +332,19 @@ void allocateErrorBudget(Method method, double target, double reference2, Target
 // Level 0's probes and seconds (TargetChoice's plan). Adaptive sampling traces a probe until
 // its relative noise meets probeNoiseTarget: at N directions a point's noise variance is its
 // 256-direction one times 256 / N.
-void planLevelZero(TargetChoice& choice) {
+void planLevelZero(const PilotFigures& pilot, TargetChoice& choice) {
     for (const VolumeConfig& v : choice.config.volumes) {
         const glm::uvec3 points = *v.resolution * brick::kBrickCells + 1u;
         choice.levelZeroProbes += uint64_t(points.x) * points.y * points.z;
     }
     double directions = 0.0;
     const double target2 = choice.probeNoiseTarget * choice.probeNoiseTarget;
-    for (double rel2 : choice.pilotRelativeNoise2) {
+    for (double rel2 : pilot.relativeNoise2) {
         directions += std::clamp(double(kPilotSamples) * rel2 / target2, double(choice.minSamples),
                                  double(kTargetMaxSamples));
     }
-    choice.expectedDirections = directions / double(choice.pilotRelativeNoise2.size());
-    choice.levelZeroSeconds = double(choice.levelZeroProbes) * choice.pilotSecondsPerPoint *
+    choice.expectedDirections = directions / double(pilot.relativeNoise2.size());
+    choice.levelZeroSeconds = double(choice.levelZeroProbes) * pilot.secondsPerPoint *
                               choice.expectedDirections / double(kPilotSamples);
 }
 
@@ -356,12 +366,12 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
         return descs.error();
     }
     chooseLevel0Resolution(descs.value(), target, choice.config);
-    Result<double> reference2 = runPilot(scene, base, descs.value(), threads, choice);
-    if (!reference2) {
-        return reference2.error();
+    Result<PilotFigures> pilot = runPilot(scene, base, descs.value(), threads, choice);
+    if (!pilot) {
+        return pilot.error();
     }
-    allocateErrorBudget(base.method, target, reference2.value(), choice);
-    planLevelZero(choice);
+    allocateErrorBudget(base.method, target, pilot.value().reference2, choice);
+    planLevelZero(pilot.value(), choice);
     choice.pilotSeconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return choice;

@@ -299,10 +299,9 @@ Volume volumeOf(const BrickedOutcome& o) {
     return v.ok() ? std::move(v).value() : Volume{};
 }
 
-// The refinement rule's error scale for an analytic field: RMS of E over the level-0 bricks'
-// probes (64 per brick, shared border probes counted in each brick, as the baker lists them),
-// each E^2 clamped to the value at rank floor(0.999 (n - 1)) in ascending order.
-double analyticScale(const VolumeDesc& desc, const Field& f) {
+// E^2 at the level-0 bricks' probes, brick by brick (64 per brick, shared border probes
+// counted in each brick, as the baker lists them).
+std::vector<double> levelZeroSquares(const VolumeDesc& desc, const Field& f) {
     std::vector<double> squares;
     for (const Brick& b : brick::uniformLayout(desc.grid.resolution(), 0).bricks) {
         for (uint32_t k = 0; k < brick::kBrickProbeCount; ++k) {
@@ -310,6 +309,14 @@ double analyticScale(const VolumeDesc& desc, const Field& f) {
             squares.push_back(e * e);
         }
     }
+    return squares;
+}
+
+// The refinement rule's error scale for an analytic field: RMS of E over the level-0 bricks'
+// probes (64 per brick, shared border probes counted in each brick, as the baker lists them),
+// each E^2 clamped to the value at rank floor(0.999 (n - 1)) in ascending order.
+double analyticScale(const VolumeDesc& desc, const Field& f) {
+    const std::vector<double> squares = levelZeroSquares(desc, f);
     std::vector<double> ascending = squares;
     std::sort(ascending.begin(), ascending.end());
     const double cap = ascending[size_t(0.999 * double(ascending.size() - 1))];
@@ -323,13 +330,7 @@ double analyticScale(const VolumeDesc& desc, const Field& f) {
 // The bounded measure's scale over the same probes (methods/irradiance_error.hpp): the RMS of
 // f with squares above the bright-point cap counted at the cap.
 double analyticBoundedScale(const VolumeDesc& desc, const Field& f) {
-    std::vector<double> squares;
-    for (const Brick& b : brick::uniformLayout(desc.grid.resolution(), 0).bricks) {
-        for (uint32_t k = 0; k < brick::kBrickProbeCount; ++k) {
-            const double e = f(glm::dvec3(probePosition(desc, b, localOf(k))));
-            squares.push_back(e * e);
-        }
-    }
+    const std::vector<double> squares = levelZeroSquares(desc, f);
     const double cap = baker::brightPointCap(squares);
     double sum2 = 0.0;
     for (double e2 : squares) {
@@ -1063,8 +1064,8 @@ TEST(BrickedRefinement, KeepsExactlyTheOctantsAboveTheThreshold) {
     // Unrefined, the predicted error is the RMS of the eight octants' disagreements, in the
     // bounded measure's scale (no point of this field is near the cap: the plain RMS of f, not
     // the refinement's clamped one); each finer brick takes its octant out of it (a level-1
-    // brick's own error is not measured at max level 1: its prediction is its octant's
-    // disagreement over 4 or 2).
+    // brick's own error is not measured at max level 1: it is predicted from its own probes
+    // against its corners' interpolation, as level 0 is).
     double mean2 = 0.0;
     for (double x : d) {
         mean2 += x * x / 8.0;

@@ -31,7 +31,8 @@ struct Node {
     // RMS disagreement at the finer probes of each octant (the region of the finer brick
     // there), noise taken out.
     float octant[8] = {};
-    // The same in the bounded measure (irradiance_error.hpp), which the prediction reports.
+    // The same in the bounded measure (irradiance_error.hpp), which the prediction reports
+    // (predictFromCorners sets predictedBounded, for level 0 and the untested stored bricks).
     float predictedBounded = 0.0f;
     float octantBounded[8] = {};
     float gain = 0.0f;    // the parent's disagreement in this brick's octant: what it removes
@@ -386,9 +387,9 @@ Disagreement measure(const Lattice& lattice, const Brick& b, uint32_t max_level,
                     squaredDifference(brick::interpolate(own, local), lattice.sh(u), order) *
                     inv_scale2;
                 const double fine2 = meanSquaredIrradiance(lattice.sh(u), order);
-                sums.add(q, e2, noise2 * (1.0 + squaredWeightSum(local)),
-                         scales.boundedFactor(fine2),
-                         scales.boundedNoise(fine2, squaredWeightSum(local)));
+                const double weights2 = squaredWeightSum(local);
+                sums.add(q, e2, noise2 * (1.0 + weights2), scales.boundedFactor(fine2),
+                         scales.boundedNoise(fine2, weights2));
             }
         }
     }
@@ -746,11 +747,10 @@ void predictFromCorners(const BrickedBake& b, Node& n) {
         const sh::ShRgb& fine = lattice.sh(pts[k]);
         const double e2 = squaredDifference(brick::interpolate(corner_brick, t), fine, b.order) /
                           (double(b.scales.scale) * b.scales.scale);
-        const double noise2 = b.noise2 * (1.0 + squaredWeightSum(t));
-        sum.add(e2, noise2);
+        const double weights2 = squaredWeightSum(t);
+        sum.add(e2, b.noise2 * (1.0 + weights2));
         const double fine2 = meanSquaredIrradiance(fine, b.order);
-        bounded.add(e2 * b.scales.boundedFactor(fine2),
-                    b.scales.boundedNoise(fine2, squaredWeightSum(t)));
+        bounded.add(e2 * b.scales.boundedFactor(fine2), b.scales.boundedNoise(fine2, weights2));
     }
     const float spacing = b.reach.near(n.brick) ? 3.0f : 9.0f;
     n.predicted = sum.rms() / spacing;
@@ -874,7 +874,6 @@ std::vector<int> keepFinerBricks(BrickedBake& b, const Candidates& candidates, u
             child.parent = i;
             child.gain = nodes[size_t(i)].octant[o];
             child.predicted = child.gain / decay;
-            child.predictedBounded = nodes[size_t(i)].octantBounded[o] / decay;
             nodes[size_t(i)].children[o] = int(nodes.size());
             next.push_back(int(nodes.size()));
             nodes.push_back(child);

@@ -36,11 +36,11 @@ Result<PointBake> bakePoints(const Scene& scene, const BakeConfig& config,
 // from a fixed low-discrepancy sequence (deterministic).
 std::vector<glm::vec3> volumeSamplePoints(const std::vector<VolumeDesc>& volumes, size_t count);
 
-// The error measure of --target-error and --verify: relative RMS irradiance error,
-// sqrt(sum |E - E_ref|^2 / sum |E_ref|^2) over points, the six axis normals and the three
-// channels (irradiance from radiance SH, sh::irradiance).
-// The bounded relative RMS irradiance error (methods/irradiance_error.hpp): a point brighter
-// than kBrightPointCap times the median point counts as if it were that bright.
+// The error measure of --target-error and --verify: the bounded relative RMS irradiance error,
+// sqrt(sum s |E - E_ref|^2 / sum s |E_ref|^2) over points, the six axis normals and the three
+// channels (irradiance from radiance SH, sh::irradiance), s each point's bright-point weight
+// (methods/irradiance_error.hpp: a point brighter than kBrightPointCap times the median point
+// counts as if it were that bright).
 struct ErrorEstimate {
     double relRmse = 0.0;        // against the mean of the two reference estimates, with the
                                  // reference's own noise subtracted (0 if noise explains all)
@@ -88,10 +88,6 @@ struct TargetChoice {
     uint64_t levelZeroProbes = 0;
     double expectedDirections = 0.0;
     double levelZeroSeconds = 0.0;
-    // Per valid pilot point: one 256-direction estimate's noise variance relative to its
-    // irradiance (or to the noise floor where darker), what adaptive sampling compares.
-    std::vector<double> pilotRelativeNoise2;
-    double pilotSecondsPerPoint = 0.0; // tracing, per pilot point and estimate
 };
 // The error budget of chooseSettings, as fractions of the target t.
 constexpr double kTargetTolerance = 1.5; // probekit bake fails when predicted or measured is more
