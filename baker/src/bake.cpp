@@ -622,6 +622,14 @@ uint64_t plannedProbes(const VolumeDesc& d) {
     return d.layout == VolumeLayout::Bricked ? uint64_t(lattice.x) * lattice.y * lattice.z
                                              : d.grid.probeCount();
 }
+
+// The probes the progress expects of a volume not started yet: a dense grid's; a bricked
+// volume's level 0 and as many again for each level refinement may test
+// (BrickedSettings::expectFurther).
+uint64_t expectedProbes(const VolumeDesc& d) {
+    const uint64_t levels = d.layout == VolumeLayout::Bricked ? 1u + d.bricks.maxLevel : 1u;
+    return plannedProbes(d) * levels;
+}
 } // namespace
 
 uint64_t estimateBakeMemory(const std::vector<VolumeDesc>& volumes) {
@@ -838,11 +846,19 @@ void bakeBatch(BakeRun& run, const VolumeIntegrator& integrator,
     run.samplesMax.store(std::max(run.samplesMax.load(), stats.most));
 }
 
-BrickedSettings brickedSettings(const BakeRun& run, const VolumeConfig& vc, uint32_t volume_index) {
+BrickedSettings brickedSettings(BakeRun& run, const VolumeConfig& vc, uint32_t volume_index) {
     // The working memory: max_memory_mb less what the rest of the bake holds meanwhile
     // (memory_model.hpp).
-    return BrickedSettings{run.config, vc, run.memory.brickedWorkingBytes[volume_index],
-                           &run.tracer, run.threads};
+    BrickedSettings s{run.config, vc, run.memory.brickedWorkingBytes[volume_index], &run.tracer,
+                      run.threads};
+    // The refinement's expected probes join the progress's total (BakeProgress), replacing
+    // the previous expectation.
+    s.expectFurther = [&run, expected = uint64_t(0)](uint64_t probes) mutable {
+        run.plannedAhead.fetch_add(probes);
+        run.plannedAhead.fetch_sub(expected);
+        expected = probes;
+    };
+    return s;
 }
 
 // Adds a bricked volume's statistics and warnings to the bake's.
@@ -1181,10 +1197,10 @@ Result<BakeResult> bakeScene(const Scene& scene, const BakeConfig& config,
     const MethodState method = prepareMethod(run, descs, result.stats);
     const std::vector<VolumeConfig> volume_configs = volumeConfigs(config);
     for (const VolumeDesc& d : descs) {
-        run.plannedAhead.fetch_add(plannedProbes(d));
+        run.plannedAhead.fetch_add(expectedProbes(d));
     }
     for (uint32_t vi = 0; vi < descs.size(); ++vi) {
-        run.plannedAhead.fetch_sub(plannedProbes(descs[vi]));
+        run.plannedAhead.fetch_sub(expectedProbes(descs[vi]));
         Result<Volume> volume = bakeVolume(run, method, descs[vi], vi, volume_configs[vi], result);
         if (!volume) {
             return volume.error();

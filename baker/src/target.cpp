@@ -193,18 +193,23 @@ Result<std::vector<VolumeDesc>> placeAtDenseDensity(const Scene& scene, BakeConf
 
 // Level 0 covers the smooth light, where trilinear error grows with the square of the spacing:
 // its spacing scales with sqrt(target / kDensityTarget) from the density rule's (which suits
-// kDensityTarget); refinement adds the detail.
+// kDensityTarget); refinement adds the detail. It is never coarser than kTargetMaxSpacing, so
+// a level gets probes at most that far apart wherever a player can be, lit or not.
 void chooseLevel0Resolution(const std::vector<VolumeDesc>& descs, double target,
                             BakeConfig& config) {
     constexpr double kDensityTarget = 0.05;
     const double spacing_scale = std::sqrt(target / kDensityTarget);
     for (size_t i = 0; i < descs.size(); ++i) {
         const glm::uvec3 top = descs[i].grid.resolution();
+        const glm::vec3 extent = descs[i].grid.bounds().max - descs[i].grid.bounds().min;
         glm::uvec3 chosen;
         for (int a = 0; a < 3; ++a) {
             const double bricks = double(top[a]) / spacing_scale;
-            chosen[a] = std::clamp(1u << uint32_t(std::max(0L, std::lround(std::log2(bricks)))), 1u,
-                                   grid::kMaxResolution);
+            const uint32_t by_error = 1u << uint32_t(std::max(0L, std::lround(std::log2(bricks))));
+            // Level 0 holds kBrickCells cells per brick.
+            const double fewest = double(extent[a]) / (kTargetMaxSpacing * brick::kBrickCells);
+            const uint32_t by_spacing = std::bit_ceil(uint32_t(std::ceil(std::max(1.0, fewest))));
+            chosen[a] = std::clamp(std::max(by_error, by_spacing), 1u, grid::kMaxResolution);
         }
         config.volumes[i].resolution = chosen;
     }

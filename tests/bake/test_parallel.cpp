@@ -138,6 +138,19 @@ TEST(BakeProgressReports, FromTheCallingThreadEndingAtTheTotalWithTheSameOutput)
     test::expectSameFileButTiming(a.value(), b.value());
 }
 
+namespace {
+
+// Bakes on 2 threads, keeping every progress report.
+Result<BakeResult> bakeReporting(const Scene& scene, const BakeConfig& c,
+                                 std::vector<BakeProgress>& reports) {
+    BakeOptions options;
+    options.threads = 2;
+    options.progress = [&](const BakeProgress& p) { reports.push_back(p); };
+    return bake(scene, c, options);
+}
+
+} // namespace
+
 // The total covers the whole bake from its first report: the second volume's planned probes
 // are counted while the first bakes, so the ETA is the bake's, not the first volume's.
 TEST(BakeProgressReports, TheTotalCoversEveryVolumeFromTheFirstReport) {
@@ -152,16 +165,35 @@ TEST(BakeProgressReports, TheTotalCoversEveryVolumeFromTheFirstReport) {
     second.resolution = glm::uvec3(2, 2, 2); // 8 probes
     c.volumes = {first, second};
     std::vector<BakeProgress> reports;
-    BakeOptions options;
-    options.threads = 2;
-    options.progress = [&](const BakeProgress& p) { reports.push_back(p); };
-    Result<BakeResult> r = bake(scene, c, options);
+    Result<BakeResult> r = bakeReporting(scene, c, reports);
     ASSERT_TRUE(r.ok()) << r.error().message;
     ASSERT_FALSE(reports.empty());
     EXPECT_EQ(reports.front().probesTotal, 40u);
     for (size_t i = 1; i < reports.size(); ++i) {
         EXPECT_GE(reports[i].probesTotal, reports[i - 1].probesTotal) << i;
     }
+    EXPECT_EQ(reports.back().probesTotal, r.value().stats.probes);
+}
+
+// A bricked volume's refinement is expected from its first report: level 0's lattice and as
+// many again per level to be tested (BakeProgress), replaced by the batches as they come, so
+// the last report's total is the bake's probes.
+TEST(BakeProgressReports, ABrickedVolumeExpectsItsRefinementFromTheFirstReport) {
+    const Scene scene = test::generatedScene("cornell");
+    BakeConfig c;
+    c.path.samples = 16;
+    VolumeConfig v;
+    v.layout = VolumeLayout::Bricked;
+    v.resolution = glm::uvec3(2, 2, 2); // 7^3 = 343 level-0 lattice probes
+    v.maxLevel = 2;
+    v.refineError = 0.01f;
+    c.volumes = {v};
+    std::vector<BakeProgress> reports;
+    Result<BakeResult> r = bakeReporting(scene, c, reports);
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    ASSERT_FALSE(reports.empty());
+    EXPECT_EQ(reports.front().probesTotal, 343u * 3u);
+    EXPECT_GT(r.value().stats.probes, 343u); // it refined: the expectation was needed
     EXPECT_EQ(reports.back().probesTotal, r.value().stats.probes);
 }
 

@@ -157,6 +157,33 @@ TEST(TargetError, UniformSkyChoosesL1AndTheFewestSamples) {
     EXPECT_LT(c.value().band2, 1e-3);
 }
 
+// On a level the error rule alone would space level 0 1.35 m apart at target 0.1 (the
+// closed arena's 16 x 2 x 16 bricks); the planner holds it to kTargetMaxSpacing, with the
+// fewest power-of-two bricks that do: half as many on the level's long axes would not.
+TEST(TargetError, LevelZeroIsAtMostOneMetreApartOnALevel) {
+    const Scene scene = test::generatedScene("arena-sealed");
+    for (double target : {0.1, 0.2}) {
+        SCOPED_TRACE(target);
+        Result<TargetChoice> c = chooseSettings(scene, BakeConfig{}, target);
+        ASSERT_TRUE(c.ok()) << c.error().message;
+        Result<VolumePlan> plan = planVolumes(scene, c.value().config);
+        ASSERT_TRUE(plan.ok()) << plan.error().message;
+        for (const VolumeDesc& d : plan.value().volumes) {
+            const glm::vec3 extent = d.grid.bounds().size();
+            const glm::uvec3 bricks = d.grid.resolution();
+            const glm::vec3 spacing = extent / glm::vec3(bricks * brick::kBrickCells);
+            std::printf("target %.2f: %u x %u x %u level-0 bricks, spacing %.3f x %.3f x %.3f m\n",
+                        target, bricks.x, bricks.y, bricks.z, spacing.x, spacing.y, spacing.z);
+            for (int a = 0; a < 3; ++a) {
+                EXPECT_LE(spacing[a], kTargetMaxSpacing + 1e-4) << "axis " << a;
+            }
+            // x and z (65 m): 16 bricks would be 1.35 m apart.
+            EXPECT_GT(2.0f * spacing.x, kTargetMaxSpacing);
+            EXPECT_GT(2.0f * spacing.z, kTargetMaxSpacing);
+        }
+    }
+}
+
 // The claim of --target-error, end to end on the Cornell box: the measured error (the same
 // measure as --verify, against two independent 2048-direction path estimates at 256 points,
 // their own noise subtracted) lands within 1.5x of the target. Everything is seeded, so this

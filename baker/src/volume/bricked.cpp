@@ -86,6 +86,9 @@ public:
         return m_desc.grid.frame().toWorld(box.min + t * box.size());
     }
 
+    // Called with the size of each batch ensure() is about to bake (not the nudges' re-bakes).
+    void onBatch(std::function<void(size_t)> fn) { m_onBatch = std::move(fn); }
+
     // Bakes every point of `wanted` not baked yet, in one batch.
     void ensure(const std::vector<glm::uvec3>& wanted) {
         std::vector<uint64_t> keys;
@@ -106,6 +109,9 @@ public:
         }
         std::vector<sh::ShRgb> sh(keys.size());
         std::vector<uint8_t> valid(keys.size());
+        if (m_onBatch) {
+            m_onBatch(keys.size());
+        }
         m_bake(positions, keys, sh, valid);
         const std::vector<uint8_t> nudged = nudge(positions, keys, sh, valid);
         for (size_t i = 0; i < keys.size(); ++i) {
@@ -210,6 +216,7 @@ private:
 
     const VolumeDesc& m_desc;
     const ProbeBatchFn& m_bake;
+    std::function<void(size_t)> m_onBatch;
     const RayTracer* m_tracer;
     float m_backfaceThreshold;
     float m_spacing = 0.0f;
@@ -633,7 +640,15 @@ struct BrickedBake {
           top(d.grid.resolution()),
           lattice(d, maxLevel, bake_batch, bs.config.nudge ? bs.tracer : nullptr,
                   bs.config.backfaceThreshold),
-          reach(s, d, maxLevel) {}
+          reach(s, d, maxLevel) {
+        // The progress's outlook (BrickedSettings::expectFurther): each level still to be
+        // tested is expected to bake as many probes as the batch under way.
+        lattice.onBatch([this](size_t n) {
+            if (settings.expectFurther) {
+                settings.expectFurther(uint64_t(n) * levelsAfter);
+            }
+        });
+    }
 
     const Scene& scene;
     const VolumeDesc& desc;
@@ -644,9 +659,10 @@ struct BrickedBake {
     glm::uvec3 top;
     Lattice lattice;
     GeometryReach reach;
-    std::vector<Node> nodes; // level 0 first, then each level's finer bricks as they are kept
-    ErrorScales scales;      // the error scales (levelZeroScales)
-    double noise2 = 0.0;     // one probe's relative noise variance (measureNoise)
+    std::vector<Node> nodes;  // level 0 first, then each level's finer bricks as they are kept
+    ErrorScales scales;       // the error scales (levelZeroScales)
+    double noise2 = 0.0;      // one probe's relative noise variance (measureNoise)
+    uint32_t levelsAfter = 0; // levels still to be tested after the batch under way
     BrickedOutcome out;
 };
 
@@ -677,6 +693,7 @@ std::vector<glm::uvec3> bakeLevelZero(BrickedBake& b) {
         const auto pts = regionPoints(n.brick, b.maxLevel, 1);
         wanted.insert(wanted.end(), pts.begin(), pts.end());
     }
+    b.levelsAfter = b.maxLevel;
     b.lattice.ensure(wanted);
     dilateBaked(b);
     b.scales = levelZeroScales(b.lattice, wanted, b.order);
@@ -897,9 +914,13 @@ void refine(BrickedBake& b) {
         // squared error. It is kept where that exceeds a fixed price per brick, which means
         // where its octant's disagreement exceeds refine_error x sqrt(8)^level.
         const float threshold = b.settings.volume.refineError * std::pow(8.0f, 0.5f * float(level));
+        b.levelsAfter = b.maxLevel - level - 1;
         const Candidates candidates = chooseCandidates(b, direct, frontier, threshold);
         b.out.refineCandidates += candidates.nodes.size();
         frontier = keepFinerBricks(b, candidates, level, threshold);
+    }
+    if (b.settings.expectFurther) {
+        b.settings.expectFurther(0);
     }
 }
 

@@ -64,9 +64,12 @@ VplConfig resolveVplConfig(const Scene& scene, const std::vector<VolumeDesc>& vo
 uint64_t estimateBakeMemory(const std::vector<VolumeDesc>& volumes);
 
 // How far a bake is. probesTotal covers the whole bake, not only the volume or brick level
-// under way: the probes queued so far plus, for each volume not yet started, the probes its
-// plan holds (a dense grid's probes; a bricked volume's level 0, its refinement unknown until
-// it runs). It grows when relocation or refinement adds probes.
+// under way: the probes queued so far plus those expected of the rest. A volume not yet
+// started is expected to bake its dense grid's probes, or its bricked level 0 and as many
+// again for each level refinement may test; a bricked volume under way expects each level
+// still to be tested to bake as many probes as its latest batch (BrickedSettings::
+// expectFurther). The total moves as relocation adds probes and refinement replaces its
+// guesses with batches.
 struct BakeProgress {
     uint64_t probesDone = 0;
     uint64_t probesTotal = 0;

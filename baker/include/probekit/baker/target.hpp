@@ -99,11 +99,15 @@ constexpr uint32_t kTargetMaxSamples = 1u << 16;
 constexpr double kTargetNoiseShare = 0.6;       // interpolated Monte Carlo noise
 constexpr double kTargetBand2Share = 0.4;       // SH band 2 may be dropped (L1) below this
 constexpr double kTargetMinInterpolation = 0.2; // interpolation's share never falls below this
+// Level 0's probes are at most this far apart (metres): a player (about 1.8 m tall) moving through
+// a level sees light no coarser than this wherever it stands, before refinement adds detail.
+constexpr double kTargetMaxSpacing = 1.0;
 
 // Chooses settings so that the bake's error against a converged path reference is about
 // `target` t: every volume becomes bricked (levels 3) with refine_error from the error budget
 // and level-0 bricks from the density rule with the spacing scaled by sqrt(t / 0.05) (the
-// smooth light level 0 covers has trilinear error growing with the square of the spacing);
+// smooth light level 0 covers has trilinear error growing with the square of the spacing), but
+// never more than kTargetMaxSpacing apart;
 // SH order L1 where band 2 carries less than kTargetBand2Share x t; the sample count so that
 // the interpolated Monte Carlo noise is kTargetNoiseShare x t (from a pilot of two independent
 // estimates at 64 points); interpolation gets the rest in quadrature,
