@@ -159,7 +159,8 @@ struct PathConfig {
     // W/m^2, RMS over the six axis normals and three channels: a probe darker than this has its
     // noise measured against this instead of its own irradiance, so that dark probes are not
     // chased to a relative noise the bake's overall error does not need (--target-error sets
-    // it to the pilot's RMS irradiance). 0 = every probe against its own.
+    // it to the pilot's RMS irradiance in the bounded measure, irradiance_error.hpp). 0 = every
+    // probe against its own.
     float noiseFloor = 0.0f;
     // Punctual and directional lights at a path vertex (path_integrator.hpp): when more than
     // this many could light it, light i's shadow ray is traced with probability

@@ -77,8 +77,8 @@ struct TargetChoice {
     // kTargetMaxSamples.
     uint32_t minSamples = 0;
     double probeNoiseTarget = 0.0;
-    double noiseFloor = 0.0;          // the pilot's RMS irradiance (path.noise_floor), W/m^2
-    double predictedNoise = 0.0;      // noise after interpolation at `samples`
+    double noiseFloor = 0.0;     // the pilot's bounded RMS irradiance (path.noise_floor), W/m^2
+    double predictedNoise = 0.0; // noise after interpolation at `samples`
     double interpolationBudget = 0.0; // refine_error given to the bricked volumes
     double pilotSeconds = 0.0;
     // The plan printed before the bake. Level 0's lattice probes, the directions adaptive
@@ -92,7 +92,7 @@ struct TargetChoice {
 // The error budget of chooseSettings, as fractions of the target t.
 constexpr double kTargetTolerance = 1.5; // probekit bake fails when predicted or measured is more
 // Fewest directions per probe chooseSettings gives: L2 SH has 9 coefficients per channel, and
-// below ~14 directions per coefficient a probe is noise wherever the 64 pilot points missed a
+// below ~14 directions per coefficient a probe is noise wherever the 256 pilot points missed a
 // light feature (8 directions, the old floor, baked a grainy millimetre engine).
 constexpr uint32_t kTargetMinSamples = 128;
 constexpr uint32_t kTargetMaxSamples = 1u << 16;
@@ -110,7 +110,7 @@ constexpr double kTargetMaxSpacing = 1.0;
 // never more than kTargetMaxSpacing apart;
 // SH order L1 where band 2 carries less than kTargetBand2Share x t; the sample count so that
 // the interpolated Monte Carlo noise is kTargetNoiseShare x t (from a pilot of two independent
-// estimates at 64 points); interpolation gets the rest in quadrature,
+// estimates at 256 points); interpolation gets the rest in quadrature,
 // sqrt(t^2 - noise^2 - band2^2), but at least kTargetMinInterpolation x t. For methods vpl and
 // lpv the count chosen is their direct-light samples; their own bias (VPL clamping, LPV
 // propagation) is not modelled.
