@@ -201,7 +201,7 @@ void chooseLevel0Resolution(const std::vector<VolumeDesc>& descs, double target,
     const double spacing_scale = std::sqrt(target / kDensityTarget);
     for (size_t i = 0; i < descs.size(); ++i) {
         const glm::uvec3 top = descs[i].grid.resolution();
-        const glm::vec3 extent = descs[i].grid.bounds().max - descs[i].grid.bounds().min;
+        const glm::vec3 extent = descs[i].grid.bounds().size();
         glm::uvec3 chosen;
         for (int a = 0; a < 3; ++a) {
             const double bricks = double(top[a]) / spacing_scale;
@@ -219,11 +219,12 @@ constexpr uint32_t kPilotSamples = 256;
 
 // What the pilot measured that the budget and the plan use after it.
 struct PilotFigures {
-    // Squared reference irradiance summed over the valid points in the bounded measure (each
-    // weighed by brightPointWeight): the noise floor's scale. The plain sum is set by whichever
-    // point lands nearest a light: on the closed arena it read 0.95 W/m^2 RMS at 64 points and
-    // 2.94 at 256, and a floor that high let every darker probe stay three times noisier.
-    double reference2 = 0.0;
+    // Mean over the valid points of the squared reference irradiance (summed over the six axis
+    // normals and three channels) in the bounded measure, each point weighed by
+    // brightPointWeight: the noise floor's square. The plain mean is set by whichever point
+    // lands nearest a light: on the closed arena it read 0.95 W/m^2 RMS at 64 points and 2.94
+    // at 256, and a floor that high let every darker probe stay three times noisier.
+    double floor2 = 0.0;
     // Per valid point: one 256-direction estimate's noise variance relative to its irradiance
     // (or to the noise floor where darker), what adaptive sampling compares.
     std::vector<double> relativeNoise2;
@@ -283,12 +284,11 @@ Result<PilotFigures> runPilot(const Scene& scene, const BakeConfig& base,
     }
     choice.pilotSamples = kPilotSamples;
     PilotFigures figures;
-    figures.reference2 = bounded2;
+    figures.floor2 = bounded2 / double(pilot.size());
     figures.secondsPerPoint =
         (a.value().seconds + b.value().seconds) / (2.0 * double(points.size()));
-    const double floor2 = bounded2 / double(pilot.size());
     for (const Point& p : pilot) {
-        figures.relativeNoise2.push_back(p.noise2 / std::max(p.reference2, floor2));
+        figures.relativeNoise2.push_back(p.noise2 / std::max(p.reference2, figures.floor2));
     }
     choice.pilotNoise = std::sqrt(noise2 / bounded2);
     // Band 2's own share, less the noise it carries (band 2 is 5 of the 9 coefficients).
@@ -299,7 +299,7 @@ Result<PilotFigures> runPilot(const Scene& scene, const BakeConfig& base,
 
 // Splits the target between noise, SH order and interpolation from the pilot's figures, and
 // writes the resulting settings into choice.config.
-void allocateErrorBudget(Method method, double target, double reference2, TargetChoice& choice) {
+void allocateErrorBudget(Method method, double target, double floor2, TargetChoice& choice) {
     const double noise_budget = kTargetNoiseShare * target;
     choice.shOrder = choice.band2 < kTargetBand2Share * target ? sh::Order::L1 : sh::Order::L2;
     const double sh_error = choice.shOrder == sh::Order::L1 ? choice.band2 : 0.0;
@@ -325,7 +325,7 @@ void allocateErrorBudget(Method method, double target, double reference2, Target
     choice.config.path.noiseTarget = float(choice.probeNoiseTarget);
     // The error is relative to the volume's RMS irradiance, not each probe's: a dark probe's
     // noise is held to the pilot's RMS irradiance, not chased to a fraction of its own.
-    choice.noiseFloor = std::sqrt(reference2 / (double(choice.pilotPoints) * 18.0));
+    choice.noiseFloor = std::sqrt(floor2 / 18.0); // RMS over 6 normals x 3 channels
     choice.config.path.noiseFloor = float(choice.noiseFloor);
     choice.config.path.maxSamples = kTargetMaxSamples;
     if (method == Method::Path) {
@@ -382,7 +382,7 @@ Result<TargetChoice> chooseSettings(const Scene& scene, const BakeConfig& base, 
     if (!pilot) {
         return pilot.error();
     }
-    allocateErrorBudget(base.method, target, pilot.value().reference2, choice);
+    allocateErrorBudget(base.method, target, pilot.value().floor2, choice);
     planLevelZero(pilot.value(), choice);
     choice.pilotSeconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
