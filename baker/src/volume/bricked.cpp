@@ -86,11 +86,10 @@ public:
         return m_desc.grid.frame().toWorld(box.min + t * box.size());
     }
 
-    // Called with the size of each batch ensure() is about to bake (not the nudges' re-bakes).
-    void onBatch(std::function<void(size_t)> fn) { m_onBatch = std::move(fn); }
-
-    // Bakes every point of `wanted` not baked yet, in one batch.
-    void ensure(const std::vector<glm::uvec3>& wanted) {
+    // Bakes every point of `wanted` not baked yet, in one batch; `before`, when set, is told
+    // the batch's size first (not that of the nudges' re-bakes).
+    void ensure(const std::vector<glm::uvec3>& wanted,
+                const std::function<void(size_t)>& before = {}) {
         std::vector<uint64_t> keys;
         for (const glm::uvec3& u : wanted) {
             const uint64_t k = key(u);
@@ -109,8 +108,8 @@ public:
         }
         std::vector<sh::ShRgb> sh(keys.size());
         std::vector<uint8_t> valid(keys.size());
-        if (m_onBatch) {
-            m_onBatch(keys.size());
+        if (before) {
+            before(keys.size());
         }
         m_bake(positions, keys, sh, valid);
         const std::vector<uint8_t> nudged = nudge(positions, keys, sh, valid);
@@ -216,7 +215,6 @@ private:
 
     const VolumeDesc& m_desc;
     const ProbeBatchFn& m_bake;
-    std::function<void(size_t)> m_onBatch;
     const RayTracer* m_tracer;
     float m_backfaceThreshold;
     float m_spacing = 0.0f;
@@ -640,15 +638,7 @@ struct BrickedBake {
           top(d.grid.resolution()),
           lattice(d, maxLevel, bake_batch, bs.config.nudge ? bs.tracer : nullptr,
                   bs.config.backfaceThreshold),
-          reach(s, d, maxLevel) {
-        // The progress's outlook (BrickedSettings::expectFurther): each level still to be
-        // tested is expected to bake as many probes as the batch under way.
-        lattice.onBatch([this](size_t n) {
-            if (settings.expectFurther) {
-                settings.expectFurther(uint64_t(n) * levelsAfter);
-            }
-        });
-    }
+          reach(s, d, maxLevel) {}
 
     const Scene& scene;
     const VolumeDesc& desc;
@@ -659,12 +649,22 @@ struct BrickedBake {
     glm::uvec3 top;
     Lattice lattice;
     GeometryReach reach;
-    std::vector<Node> nodes;  // level 0 first, then each level's finer bricks as they are kept
-    ErrorScales scales;       // the error scales (levelZeroScales)
-    double noise2 = 0.0;      // one probe's relative noise variance (measureNoise)
-    uint32_t levelsAfter = 0; // levels still to be tested after the batch under way
+    std::vector<Node> nodes; // level 0 first, then each level's finer bricks as they are kept
+    ErrorScales scales;      // the error scales (levelZeroScales)
+    double noise2 = 0.0;     // one probe's relative noise variance (measureNoise)
     BrickedOutcome out;
 };
+
+// The progress's outlook (BrickedSettings::expectFurther) for a batch after which
+// `levels_after` levels are still to be tested: each is expected to bake as many probes as the
+// batch. Passed to Lattice::ensure.
+std::function<void(size_t)> expectLevelsAfter(const BrickedBake& b, uint32_t levels_after) {
+    return [&b, levels_after](size_t batch) {
+        if (b.settings.expectFurther) {
+            b.settings.expectFurther(uint64_t(batch) * levels_after);
+        }
+    };
+}
 
 // Invalid probes take dilated values as soon as they are baked: the refinement test then
 // sees what the runtime will interpolate.
@@ -693,8 +693,7 @@ std::vector<glm::uvec3> bakeLevelZero(BrickedBake& b) {
         const auto pts = regionPoints(n.brick, b.maxLevel, 1);
         wanted.insert(wanted.end(), pts.begin(), pts.end());
     }
-    b.levelsAfter = b.maxLevel;
-    b.lattice.ensure(wanted);
+    b.lattice.ensure(wanted, expectLevelsAfter(b, b.maxLevel));
     dilateBaked(b);
     b.scales = levelZeroScales(b.lattice, wanted, b.order);
     return wanted;
@@ -802,11 +801,12 @@ struct Candidates {
 };
 
 // Picks the frontier's bricks whose prediction (or direct-light disagreement) exceeds
-// `threshold` and that have a probe outside geometry, and bakes their finer probes. When their
+// `threshold` and that have a probe outside geometry, and bakes their finer probes, after
+// which `levels_after` levels are still to be tested (the progress's outlook). When their
 // probes would not fit in the working memory, the bricks with the largest disagreement are
 // kept and the rest go untested (counted in memoryUntested).
 Candidates chooseCandidates(BrickedBake& b, DirectField& direct, const std::vector<int>& frontier,
-                            float threshold) {
+                            float threshold, uint32_t levels_after) {
     struct Eligible {
         int node;
         float priority;
@@ -850,7 +850,7 @@ Candidates chooseCandidates(BrickedBake& b, DirectField& direct, const std::vect
         const auto finer = regionPoints(b.nodes[size_t(e.node)].brick, b.maxLevel, 2);
         wanted.insert(wanted.end(), finer.begin(), finer.end());
     }
-    b.lattice.ensure(wanted);
+    b.lattice.ensure(wanted, expectLevelsAfter(b, levels_after));
     dilateBaked(b);
     return out;
 }
@@ -914,8 +914,8 @@ void refine(BrickedBake& b) {
         // squared error. It is kept where that exceeds a fixed price per brick, which means
         // where its octant's disagreement exceeds refine_error x sqrt(8)^level.
         const float threshold = b.settings.volume.refineError * std::pow(8.0f, 0.5f * float(level));
-        b.levelsAfter = b.maxLevel - level - 1;
-        const Candidates candidates = chooseCandidates(b, direct, frontier, threshold);
+        const Candidates candidates =
+            chooseCandidates(b, direct, frontier, threshold, b.maxLevel - level - 1);
         b.out.refineCandidates += candidates.nodes.size();
         frontier = keepFinerBricks(b, candidates, level, threshold);
     }
